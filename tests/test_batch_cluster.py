@@ -584,3 +584,51 @@ def test_a_local_cluster_without_its_workers_is_lost_only_after_dasks_lost_worke
     finally:
         client.close()
         local.close()
+
+
+FIT = dict(n_clusters=6, n_codewords=30, stride=4)
+GEN = dict(n_patches=300)
+
+
+def gated_task(job):
+    """:func:`tghop.batch.process_exemplar` once a file ``gate`` beside OUTDIR exists (a task of a killed run that
+    runs on, slow or started late), its record then written to ``gate.record``."""
+    gate = Path(job["folder"]).parent.parent / "gate"
+    Path(f"{gate}.waiting").touch()
+    while not gate.exists():
+        time.sleep(0.05)
+    record = batch.process_exemplar(job)
+    Path(f"{gate}.record").write_text(json.dumps(record, default=str))
+    return record
+
+
+def test_a_killed_drivers_task_that_runs_on_leaves_the_reruns_files_alone(tmp_path, cluster):
+    # `tghop batch --scheduler` killed (SIGKILL): its task runs on in the cluster and, in 0.61, moved its files (seed 2)
+    # into place after the rerun's (seed 1) were made and recorded, so the ledger said seed 1 of seed 2's images and
+    # every later run kept them. 0.62: the rerun claims the exemplar, and the task of the killed run moves nothing.
+    cluster.worker("w1")
+    src, out = tmp_path / "src", tmp_path / "out"
+    src.mkdir()
+    save_image(data.bricks(64, rng=3), src / "e0.png")
+    code = ("import sys; from tghop import batch; import test_batch_cluster as t; "
+            "batch.run(sys.argv[1], sys.argv[2], size=(48, 48), seed=2, fit=t.FIT, generate=t.GEN, "
+            "scheduler=sys.argv[3], task=t.gated_task, contact_sheet=False)")
+    driver = _start(["-c", code, str(src), str(out), cluster.address], cwd=tmp_path)
+    deadline = time.time() + 120
+    while time.time() < deadline and driver.poll() is None and not (tmp_path / "gate.waiting").exists():
+        time.sleep(0.05)
+    assert (tmp_path / "gate.waiting").exists(), driver.stderr.read() if driver.poll() is not None else "no task"
+    driver.kill()
+    driver.wait(timeout=30)
+    [result] = batch.run(src, out, size=(48, 48), seed=1, fit=FIT, generate=GEN, workers=1)  # the rerun
+    assert result["status"] == "ok" and not result["skipped"], result["error"]
+    made = {p.name: p.read_bytes() for p in (out / "e0").iterdir()}
+    (tmp_path / "gate").touch()  # the killed run's task goes on now
+    deadline = time.time() + 120
+    while time.time() < deadline and not (tmp_path / "gate.record").exists():
+        time.sleep(0.05)
+    assert {p.name: p.read_bytes() for p in (out / "e0").iterdir()} == made  # the rerun's files, as its line says
+    stale = json.loads((tmp_path / "gate.record").read_text())
+    assert stale["status"] == "failed" and stale.get("superseded"), stale
+    [again] = batch.run(src, out, size=(48, 48), seed=1, fit=FIT, generate=GEN, workers=1)
+    assert again["skipped"] and again["seed_used"] == 1

@@ -135,3 +135,62 @@ def test_a_full_disk_on_a_dask_worker_stops_the_run_too(tmp_path):
     lines = ledger(out)
     assert [line["status"] for line in lines][0] == "failed" and len(lines) <= 2, lines
     assert len({line["name"] for line in lines}) == len(lines) and not list(out.rglob(".batch-running"))
+
+
+def test_a_task_whose_exemplar_another_run_claimed_meanwhile_moves_no_file(tmp_path, monkeypatch):
+    # 0.61: a task moved its files into place whatever happened meanwhile, so a killed --scheduler run's task that ran
+    # on replaced a rerun's files after the rerun's line said them. 0.62: the RUNNING file holds the claim of the run
+    # that handed the exemplar out, and a task moves its files only while it is its own (a stand-in rerun claims the
+    # exemplar here while the task fits).
+    from tghop import batch_task
+
+    src, out = make_folder(tmp_path / "src", 1), tmp_path / "out"
+    thumbnail = batch_task._thumbnail
+
+    def claimed_by_another(image, path):
+        batch_task.write_claim(out / "e0", "another run")
+        thumbnail(image, path)
+
+    monkeypatch.setattr(batch_task, "_thumbnail", claimed_by_another)
+    [result] = run(src, out)
+    assert result["status"] == "failed" and result["superseded"] and result["error"] == batch_task.SUPERSEDED
+    assert not list((out / "e0").glob("*.png")) and not list((out / "e0").glob("*.npz"))
+    monkeypatch.undo()  # a task of a stopped run that starts late: not even fitted
+    batch_task.write_claim(out / "e0", "another run")
+    record = batch.process_exemplar({"name": "e0", "source": str(src / "e0.png"), "folder": str(out / "e0"),
+                                     "claim": "a stopped run", "size": [32, 32], "count": 1, "seed": 1, "fit": FIT,
+                                     "generate": GEN})
+    assert record["superseded"] and record["fit_seconds"] is None and not list((out / "e0").glob("*.png"))
+    [result] = run(src, out)  # the next run claims it anew and makes it
+    assert result["status"] == "ok" and not result["skipped"] and not (out / "e0" / batch.RUNNING).exists()
+
+
+def test_a_renamed_exemplar_keeps_its_files_under_the_new_name(tmp_path, monkeypatch):
+    # 0.61: a manifest row given a new name (the same file and settings) was fitted again under it, and its old folder
+    # kept and said "no longer in SOURCE". 0.62: the finished result, found by its input's SHA-256 and settings, is
+    # moved to the new name, its files renamed as a run names them (a material's maps too), and the ledger says so.
+    from test_cli_failures import invoke
+
+    src = make_folder(tmp_path / "src", 2)
+    save_image(np.linspace(0, 1, 64 * 64).reshape(64, 64), src / "e1_r.png")
+    args = ["batch", "src/list.csv", "-o", "out", "--size", "32", "--seed", "1", "--count", "2", "--clusters", "6",
+            "--codewords", "30", "--stride", "4", "--workers", "1", "-q"]
+    (src / "list.csv").write_text("path,name,maps\ne0.png,rock,\ne1.png,stone,rough=e1_r.png\n")
+    code, _, err, _ = invoke(*args, cwd=tmp_path)
+    assert code == 0, err
+    out = tmp_path / "out"
+    made = {p.relative_to(out).as_posix(): p.read_bytes() for p in out.glob("*/*") if p.is_file()}
+    assert "stone/stone_1_rough.png" in made and "rock/rock_2.png" in made, sorted(made)
+    (src / "list.csv").write_text("path,name,maps\ne0.png,granite,\ne1.png,Slate,rough=e1_r.png\n")
+    monkeypatch.setattr(batch, "process_exemplar", lambda job: pytest.fail(f"{job['name']} made again"))
+    code, _, err, _ = invoke(*args, cwd=tmp_path)
+    assert code == 0, err
+    assert "renamed: rock is now granite: its files moved, not made again" in err and "no longer in SOURCE" not in err
+    moved = {p.relative_to(out).as_posix(): p.read_bytes() for p in out.glob("*/*") if p.is_file()}
+    renamed = {k.replace("rock", "granite").replace("stone", "Slate"): v for k, v in made.items()}
+    assert moved == renamed and not (out / "rock").exists() and not (out / "stone").exists()
+    last = {line["name"]: line for line in ledger(out)}
+    assert last["granite"]["renamed_from"] == "rock" and last["rock"]["status"] == "renamed"
+    assert last["rock"]["renamed_to"] == "granite" and last["Slate"]["outputs"][1] == "Slate/Slate_1_rough.png"
+    results = batch.run(src / "list.csv", out, size=32, seed=1, count=2, fit=FIT, workers=1)  # nothing to move now
+    assert [(r["skipped"], r.get("renamed")) for r in results] == [(True, None), (True, None)]

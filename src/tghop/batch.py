@@ -33,6 +33,7 @@ import json
 import numbers
 import os
 import time
+import uuid
 import warnings
 from pathlib import Path
 
@@ -43,8 +44,9 @@ from .batch_dask import (INSTALL_HINT, QUIET_CLUSTER, WORKER_ENVIRON, WORKER_MAL
                          dask_setup, import_distributed, local_cluster, run_distributed, tune_malloc)
 from .batch_plan import (IMAGE_SUFFIXES, LEDGER, NAME_MAX, RUNNING, append_ledger, check_own_files, compact_ledger,
                          find_orphans, find_work, input_digest, inputs_sha256, is_done, is_known_failure,
-                         keep_ledger_names, mark_running, open_ledger, prune_orphans, read_hashes, read_ledger,
-                         read_ledger_files, remove_stale, sync_ledger, write_hashes)
+                         keep_ledger_names, mark_running, move_renamed, open_ledger, prune_orphans, read_hashes,
+                         read_ledger, read_ledger_files, remove_stale, renamable, renamed_from, sync_ledger,
+                         write_hashes)
 from .batch_task import disk_full, process_exemplar, remove_temporaries
 from .contact_sheet import CONTACT_SHEET, write_contact_sheet as _write_sheet
 from .manifest import parse_bool, parse_int, parse_size
@@ -227,7 +229,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     list of dict
         One record per exemplar, in the order of ``source``: the ledger's fields (``name``, ``source``,
         ``sha256``, ``settings``, ``status``, ``error``, ``cause``, ``outputs``, ``model``, ``version``,
-        times, ...) and ``skipped`` (True: an earlier run's record, done or a known failure).
+        times, ...) and ``skipped`` (True: an earlier run's record, done or a known failure); ``renamed`` (True, 0.62:
+        an exemplar done before under another name, ``renamed_from``, its files moved to its name by this run:
+        :func:`tghop.batch_plan.renamed_from`).
 
     Raises
     ------
@@ -294,8 +298,13 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     previous, earlier_files = read_ledger_files(outdir)
     keep_ledger_names(items, previous)
     orphans = find_orphans(outdir, earlier_files, [it["name"] for it in items])
-    jobs, results, failed_before = [], {}, 0
+    jobs, results, failed_before, renames = [], {}, 0, []
     hashes, found = read_hashes(outdir), {}
+    candidates = renamable(previous, [it["name"] for it in items])  # done before under names no longer given
+    # This run's claim on the exemplars it hands out (0.62): their RUNNING files hold it, and a task moves its files
+    # into place only while it is the claim there, so that a killed run's tasks that ran on (a --scheduler cluster)
+    # cannot replace a rerun's files after its line (tghop.batch_task.holding_claim).
+    claim = uuid.uuid4().hex
     for it in items:
         settings = _settings(it["settings"], defaults, fit, generate)
         maps = it.get("maps") or []
@@ -306,19 +315,23 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                "sha256": input_digest(it["path"], maps, hashes, found),  # unchanged files not read again
                "settings": settings, "size": settings["size"],
                "count": settings["count"], "seed": settings["seed"], "fit": settings["fit"],
-               "generate": {**generate, "tile": settings["tile"]}, "threads": None if in_process else 1}
+               "generate": {**generate, "tile": settings["tile"]}, "threads": None if in_process else 1,
+               "claim": claim}
         if is_done(previous.get(it["name"]), job, outdir):
             results[it["name"]] = {**previous[it["name"]], "skipped": True}
         elif not retry_failed and is_known_failure(previous.get(it["name"]), job, __version__):
             results[it["name"]] = {**previous[it["name"]], "skipped": True}
             failed_before += 1
+        elif (old := renamed_from(job, previous, candidates, outdir)) is not None:
+            renames.append((job, old))  # its files moved to its new name under the ledger's lock, not made again
         else:
             jobs.append(job)
+    orphans = [name for name in orphans if name not in {old for _, old in renames}]
     own_client = ledger_file = None
     try:
-        if jobs and scheduler is not None and client is None:
+        if (jobs or renames) and scheduler is not None and client is None:  # a move that fails: made on it
             client = own_client = connect(scheduler)  # before OUTDIR is made: no empty OUTDIR when it fails
-        elif jobs and client is not None:
+        elif (jobs or renames) and client is not None:
             check_cluster(client)  # connect's checks of the workers (0.59: a given client's too)
         try:
             outdir.mkdir(parents=True, exist_ok=True)
@@ -327,11 +340,15 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         from .imageio import check_output_path
 
         check_output_path(outdir / LEDGER, what="ledger", error=TGHopError)  # a file can be made in OUTDIR
-        if jobs or (prune and orphans):
-            ledger_file = open_ledger(outdir)  # locked: pruning too waits for no other run
+        if jobs or renames or (prune and orphans):
+            ledger_file = open_ledger(outdir)  # locked: pruning and moving too wait for no other run
         # The inputs' hashes as soon as they are known (0.61; 0.60 wrote them at the end, so that after a kill -9 or
         # a lost machine the next run read every byte of every exemplar again: hours of a studio's library).
         write_hashes(outdir, hashes, found, [r.get("source") for r in previous.values()])
+        _move_renamed(outdir, ledger_file, renames, previous, earlier_files, jobs, results)
+        if not jobs and own_client is not None:  # every one moved: the scheduler has nothing to do
+            own_client.close()
+            client = own_client = None
     except BaseException:
         if own_client is not None:
             own_client.close()
@@ -360,10 +377,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                     recs.append((job, rec))
                 sync_ledger(ledger_file)
             except OSError as exc:  # 0.60: "cannot write the output: ...", which said neither what nor what next
-                why = exc.strerror or exc.__class__.__name__
-                raise TGHopError(f"{outdir / LEDGER}: cannot add to the ledger ({why}"
-                                 f"{'; free some space' if disk_full(exc) else ''}); the run stopped: "
-                                 f"{_WHAT_NEXT}") from None
+                raise _ledger_error(outdir, exc) from None
             for job, _ in recs:
                 started.pop(job["name"], None)
                 mark_running(job, False)
@@ -438,6 +452,38 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
 #: What a run stopped by its disk says of its work (:func:`run`'s ``finish``).
 _WHAT_NEXT = ("the exemplars recorded are in the ledger, those under way or not recorded are done again by the next "
               "run (the same command)")
+
+
+def _ledger_error(outdir, exc) -> TGHopError:
+    """The one line of a ledger line that could not be written (``exc``, an OSError): the run stops."""
+    why = exc.strerror or exc.__class__.__name__
+    space = "; free some space" if disk_full(exc) else ""
+    return TGHopError(f"{outdir / LEDGER}: cannot add to the ledger ({why}{space}); the run stopped: {_WHAT_NEXT}")
+
+
+def _move_renamed(outdir, ledger_file, renames, previous, earlier_files, jobs, results) -> None:
+    """Move each renamed exemplar's files (``renames``: ``(job, old name)``, :func:`tghop.batch_plan.renamed_from`)
+    to its new name, under the ledger's lock, and record it: its line under the new name (``renamed_from``), and a
+    line ``renamed`` (``renamed_to``) under the old, whose files it no longer has (0.62; 0.61 made it again and kept
+    the old folder as "no longer in SOURCE"). One whose move fails goes to ``jobs``: it is made again."""
+    for job, old in renames:
+        mark_running(job, True)  # this run's claim: a killed run's task of the new name moves nothing in meanwhile
+        rec = move_renamed(outdir, previous[old], old, job)
+        if rec is None:
+            jobs.append(job)
+            continue
+        gone = {"name": old, "source": previous[old].get("source"), "sha256": previous[old].get("sha256"),
+                "settings": previous[old].get("settings"), "version": __version__, "status": "renamed",
+                "renamed_to": job["name"], "error": None, "cause": None, "outputs": [], "model": None,
+                "thumbnail": None, "finished": time.time()}
+        try:
+            append_ledger(ledger_file, rec, sync=False)
+            append_ledger(ledger_file, gone)
+        except OSError as exc:  # its files are in the new folder, without a line: the next run makes it again
+            raise _ledger_error(outdir, exc) from None
+        mark_running(job, False)
+        remove_stale(outdir, earlier_files.get(job["name"], ()), rec)  # an older run's files of the new name
+        results[job["name"]] = {**rec, "skipped": True, "renamed": True}
 
 
 def _report_orphans(outdir, names, kept, on_orphans) -> None:

@@ -14,7 +14,9 @@ ledger that says what an earlier run finished.
   unchanged, :func:`remove_stale` deletes the files a new line no longer lists, and
   :func:`mark_running` the :data:`RUNNING` file of an exemplar handed out;
 * :func:`find_orphans` -- the folders an earlier run made for exemplars no longer in SOURCE, and
-  :func:`prune_orphans`, which deletes the files the ledger says a run made there.
+  :func:`prune_orphans`, which deletes the files the ledger says a run made there;
+* :func:`renamed_from` -- an exemplar done before under another name (a manifest row renamed, a file
+  renamed in SOURCE: its input and settings unchanged), whose files :func:`move_renamed` moves to the new name.
 
 :func:`tghop.batch.run` uses them; :mod:`tghop.batch_dask` runs the work on Dask.
 """
@@ -37,7 +39,7 @@ from pathlib import Path
 from ._errors import TGHopError
 from ._json import loads_unique
 from ._formats import OTHER_IMAGE_SUFFIXES, READ_SUFFIXES
-from .batch_task import THUMBNAIL_FILE, remove_temporaries
+from .batch_task import RUNNING, THUMBNAIL_FILE, output_files, remove_temporaries, write_claim
 from .contact_sheet import CONTACT_SHEET
 from .manifest import MAX_MAPS, read_manifest
 
@@ -45,7 +47,8 @@ __all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "HASHES", "STAT_MA
            "windows_reserved", "find_work", "inputs_sha256", "inputs_stat", "input_digest", "read_hashes",
            "write_hashes", "file_sha256", "read_ledger", "read_ledger_files", "keep_ledger_names", "check_own_files",
            "open_ledger", "append_ledger", "sync_ledger", "compact_ledger", "COMPACT_MIN", "is_done",
-           "is_known_failure", "mark_running", "remove_stale", "find_orphans", "prune_orphans"]
+           "is_known_failure", "mark_running", "remove_stale", "find_orphans", "prune_orphans", "renamable",
+           "renamed_from", "move_renamed"]
 
 
 #: File extensions taken as exemplars when SOURCE is a folder: those tghop reads
@@ -55,10 +58,6 @@ __all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "HASHES", "STAT_MA
 IMAGE_SUFFIXES = READ_SUFFIXES
 #: The ledger, in OUTDIR (beside the contact sheet, :data:`tghop.contact_sheet.CONTACT_SHEET`).
 LEDGER = "batch.jsonl"
-#: In an exemplar's folder from its hand-out until its ledger line is written: a rerun does again
-#: an exemplar that has one (the run that wrote it was killed, its task may have run on and
-#: replaced the files an earlier line lists: a given cluster's task runs on without its client).
-RUNNING = ".batch-running"
 #: The longest folder name of an exemplar (ASCII): its files' names add up to 88 characters
 #: (``.NAME_0001_<map of 64>.png.XXXXXXXX.tmp`` while written) to a file name's 255 bytes.
 NAME_MAX = 160
@@ -585,14 +584,16 @@ def _listed_files(rec: dict) -> list:
 
 def mark_running(job, on: bool) -> None:
     """Make (``on``) or remove the exemplar's :data:`RUNNING` file (its folder made as needed;
-    one that cannot be made: its task fails and says why)."""
+    one that cannot be made: its task fails and says why). Made, it holds the job's ``claim`` (the run's
+    id, 0.62: :func:`tghop.batch_task.write_claim`), which its task checks before it moves its files into
+    place; a job whose claim cannot be written is run unchecked (its ``claim`` dropped), as before 0.62."""
     path = Path(job["folder"]) / RUNNING
+    if on:
+        if not write_claim(job["folder"], job.get("claim") or ""):
+            job.pop("claim", None)
+        return
     with contextlib.suppress(OSError):
-        if on:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.touch()
-        else:
-            path.unlink()
+        path.unlink()
 
 
 def remove_stale(outdir: Path, earlier: set, rec: dict) -> None:
@@ -673,3 +674,74 @@ def prune_orphans(outdir: Path, orphans, files: dict) -> dict:
             with contextlib.suppress(OSError):
                 kept[name] = sorted(p.name for p in folder.iterdir())
     return kept
+
+
+# ------------------------------------------------------------------ exemplars renamed
+def renamable(previous: dict, names) -> dict:
+    """The earlier exemplars done (``previous``: :func:`read_ledger`) whose names no exemplar of this run has
+    (``names``, compared without case), by their inputs' SHA-256: where an exemplar of this run has no line of its
+    own, one of them with its input and settings may be it, renamed (:func:`renamed_from`)."""
+    current = {n.lower() for n in names}
+    found = {}
+    for name, rec in previous.items():
+        if name.lower() not in current and rec.get("status") == "ok" and isinstance(rec.get("sha256"), str):
+            found.setdefault(rec["sha256"], []).append(name)
+    return found
+
+
+def _renamed_files(prev: dict, old: str, new: str):
+    """``[(file, renamed)]`` (relative to OUTDIR) of the files ``prev`` (exemplar ``old``'s line) lists, named for
+    exemplar ``new`` as a run names them (:func:`tghop.batch_task.output_files`); None where the line does not name
+    them so (an earlier version's names): such an exemplar is made again."""
+    settings = prev.get("settings") if isinstance(prev.get("settings"), dict) else {}
+    try:
+        count, maps = int(settings.get("count", 1)), settings.get("maps")
+        before = [f"{old}/{f}" for f in output_files(old, count, maps)]
+        after = [f"{new}/{f}" for f in output_files(new, count, maps)]
+    except (TypeError, ValueError):
+        return None
+    if before != prev.get("outputs") or prev.get("model") != f"{old}/{old}.npz" \
+            or prev.get("thumbnail") != f"{old}/{THUMBNAIL_FILE}":
+        return None
+    return [*zip(before, after), (f"{old}/{old}.npz", f"{new}/{new}.npz"),
+            (f"{old}/{THUMBNAIL_FILE}", f"{new}/{THUMBNAIL_FILE}")]
+
+
+def renamed_from(job: dict, previous: dict, candidates: dict, outdir: Path):
+    """The name an earlier run made ``job``'s exemplar under (0.62), or None: a name of ``candidates``
+    (:func:`renamable`, by SHA-256; the one taken is removed from it) whose last line is done with ``job``'s input and
+    settings (:func:`is_done`, in its own folder, no :data:`RUNNING` file) and names its files as this version does.
+    A manifest row given a new name, or a file renamed in a folder SOURCE, was made again under the new name and its
+    old folder said "no longer in SOURCE" (0.61)."""
+    for old in candidates.get(job["sha256"], ()):
+        prev = previous[old]
+        if _own_folder(outdir, old) is not None and is_done(prev, {**job, "folder": str(outdir / old)}, outdir) \
+                and _renamed_files(prev, old, job["name"]) is not None:
+            candidates[job["sha256"]].remove(old)
+            return old
+    return None
+
+
+def move_renamed(outdir: Path, prev: dict, old: str, job: dict):
+    """Move exemplar ``old``'s files (its last line ``prev``) to ``job``'s folder under ``job``'s name, and return
+    the ledger line that says them (``renamed_from``: ``old``); None where a move failed (those done are moved back:
+    the exemplar is made again). Called under the ledger's lock; the old folder is removed where it is left empty."""
+    pairs = _renamed_files(prev, old, job["name"])
+    if pairs is None:
+        return None
+    moved = []
+    try:
+        (outdir / job["name"]).mkdir(exist_ok=True)
+        for before, after in pairs:
+            os.replace(outdir / before, outdir / after)
+            moved.append((before, after))
+    except OSError:
+        for before, after in reversed(moved):
+            with contextlib.suppress(OSError):
+                os.replace(outdir / after, outdir / before)
+        return None
+    with contextlib.suppress(OSError):
+        (outdir / old).rmdir()  # only when empty: files of one's own stay
+    return {**prev, "name": job["name"], "source": job["source"], "sha256": job["sha256"], "settings": job["settings"],
+            "outputs": [after for _, after in pairs[:-2]], "model": pairs[-2][1], "thumbnail": pairs[-1][1],
+            "renamed_from": old, "finished": time.time()}

@@ -20,10 +20,20 @@ from ._errors import HINT_DOWNSCALE_YOURSELF, MissingExtraError, TGHopError, col
 from ._formats import is_model_file, model_file_kind
 
 __all__ = ["process_exemplar", "run_checked", "remove_temporaries", "one_line", "outside_the_files", "disk_full",
-           "task_threads", "STAGE", "THUMBNAIL", "THUMBNAIL_FILE"]
+           "task_threads", "output_files", "write_claim", "holding_claim", "STAGE", "THUMBNAIL", "THUMBNAIL_FILE",
+           "RUNNING", "SUPERSEDED"]
 
 #: Prefix and suffix of the hidden folder in which :func:`process_exemplar` makes an exemplar's files.
 STAGE = (".partial.", ".tmp")
+#: In an exemplar's folder from its hand-out until its ledger line is written: a rerun does again
+#: an exemplar that has one (the run that wrote it was killed, its task may have run on and
+#: replaced the files an earlier line lists: a given cluster's task runs on without its client).
+#: It holds the claim of the run that handed the exemplar out (0.62, :func:`write_claim`): a task moves its
+#: files into place only while the claim is its own (:func:`holding_claim`).
+RUNNING = ".batch-running"
+#: The error of a task whose exemplar another run claimed since (0.62): a killed run's task that ran on.
+SUPERSEDED = ("superseded: another run of this batch claimed this exemplar since this task was handed out (the run "
+              "that handed it out was stopped or killed); its files were left to that run")
 #: Longest side of the exemplar thumbnail of the contact sheet, and its file in NAME/.
 THUMBNAIL, THUMBNAIL_FILE = 128, "exemplar.png"
 #: The process-wide thread limits of the tasks running in this process (:func:`task_threads`).
@@ -77,6 +87,69 @@ def _numbered(name: str, count: int):
         return [f"{name}.png"]
     width = len(str(count))
     return [f"{name}_{i:0{width}d}.png" for i in range(1, count + 1)]
+
+
+def output_files(name: str, count: int, maps=None) -> list:
+    """The images :func:`process_exemplar` writes for exemplar ``name`` (file names in its folder): ``count``
+    numbered files, each with its material's maps (``maps``: their names, the settings' ``maps``; None: a
+    texture), as :func:`tghop.material_files.map_files` names them."""
+    if not maps:
+        return _numbered(name, count)
+    from .map_names import ALBEDO
+    from .material_files import map_files
+
+    return [each for file in _numbered(name, count) for each in map_files(file, [ALBEDO, *maps])]
+
+
+def _lock(fd) -> None:
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: the claim is checked unlocked
+        return
+    with contextlib.suppress(OSError):  # a file system without locks: checked unlocked
+        fcntl.flock(fd, fcntl.LOCK_EX)
+
+
+def write_claim(folder, claim) -> bool:
+    """Make ``folder``'s :data:`RUNNING` file hold ``claim`` (the run's own id; the folder made as needed), under
+    its lock: a task of an earlier run moving its files into place under its own claim (:func:`holding_claim`)
+    ends that first. False where it cannot be written (the task then fails and says why, or runs unchecked)."""
+    try:
+        Path(folder).mkdir(parents=True, exist_ok=True)
+        fd = os.open(Path(folder) / RUNNING, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError:
+        return False
+    try:
+        _lock(fd)
+        os.ftruncate(fd, 0)
+        os.write(fd, str(claim).encode("utf-8"))
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)  # the lock with it
+
+
+@contextlib.contextmanager
+def holding_claim(folder, claim):
+    """Context manager: whether ``folder``'s :data:`RUNNING` file holds ``claim`` (None: no claim to check, True),
+    its lock held inside, so that no other run claims the exemplar while the files are moved (0.62). A run killed
+    outright (``tghop batch --scheduler`` killed: its tasks run on the cluster) leaves tasks that may move their
+    files into place after a rerun's, over them, under the rerun's ledger line: the rerun claims the exemplar
+    anew at its hand-out, and its line removes the file, so such a task finds the claim another's, or none."""
+    if claim is None:
+        yield True
+        return
+    try:
+        fd = os.open(Path(folder) / RUNNING, os.O_RDWR)
+    except OSError:  # none: the exemplar's line was written (by this claim's run or a later one)
+        yield False
+        return
+    try:
+        _lock(fd)
+        yield os.read(fd, 4096).decode("utf-8", "replace") == str(claim)
+    finally:
+        os.close(fd)
 
 
 def remove_temporaries(folder) -> int:
@@ -208,6 +281,10 @@ def process_exemplar(job: dict) -> dict:
               "seed_used": job.get("seed"), "started": start, "fit_seconds": None, "synth_seconds": None,
               "worker": f"{socket.gethostname()}:{os.getpid()}"}
     stage, caught, phase = None, [], "input"  # phase: what a TGHopError is blamed on (the record's cause)
+    with holding_claim(folder, job.get("claim")) as current:
+        pass
+    if not current:  # a stopped run's task started late: another run has the exemplar (0.62)
+        return {**record, "error": SUPERSEDED, "cause": "run", "superseded": True, "seconds": time.time() - start}
     try:
         import numpy as np
 
@@ -271,8 +348,12 @@ def process_exemplar(job: dict) -> dict:
                 save_image(img, stage / file)
                 outputs.append(file)
             record["synth_seconds"] = time.time() - t
-        for file in [*outputs, thumb, model_file]:
-            os.replace(stage / file, folder / file)
+        with holding_claim(folder, job.get("claim")) as current:  # no other run claims it meanwhile
+            if not current:  # a stopped run's task that ran on: its files would replace a later run's (0.62)
+                record["superseded"] = True
+                raise TGHopError(SUPERSEDED)
+            for file in [*outputs, thumb, model_file]:
+                os.replace(stage / file, folder / file)
         prefix = folder.name
         record.update(status="ok", outputs=[f"{prefix}/{f}" for f in outputs], model=f"{prefix}/{model_file}",
                       thumbnail=f"{prefix}/{thumb}")

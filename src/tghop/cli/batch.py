@@ -187,6 +187,9 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
         said = "removed" if o["pruned"] and not o["kept"] else "kept" if not o["pruned"] else \
             f"its files removed, the folder kept for what tghop did not make ({', '.join(o['kept'][:3])})"
         click.echo(f"no longer in SOURCE: {o['name']}: {said}", err=True)
+    for r in results:  # 0.62: made again under the new name, the old folder kept as no longer in SOURCE (0.61)
+        if r.get("renamed"):
+            click.echo(f"renamed: {r['renamed_from']} is now {r['name']}: its files moved, not made again", err=True)
     click.echo(f"{ok:,} of {_exemplars(len(results))} done{earlier}; results in {outdir}, "
                f"contact sheet {outdir}/index.html{_orphans(orphans)}", err=True)
     if known:
