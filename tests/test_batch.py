@@ -722,9 +722,10 @@ def test_a_file_added_beside_an_exemplar_does_not_rename_it(tmp_path):
     assert sorted(p.name for p in out.iterdir() if p.is_dir()) == sorted(["sub__tex", new["name"]])
     # a name a manifest row gives wins over the ledger's
     (tmp_path / "m.csv").write_text(f"path,name\n{src / 'sub' / 'tex.png'},mine\n")
-    with pytest.warns(UserWarning, match=r"2 folders of exemplars no longer in SOURCE: sub__tex, sub__tex_png_"):
+    with pytest.warns(UserWarning, match=r"1 folder of exemplars no longer in SOURCE: sub__tex_png_"):
         (named,) = run(tmp_path / "m.csv", out, workers=1)  # the folder-named ones are no exemplars of it
     assert named["name"] == "mine" and named["status"] == "ok"
+    assert named["renamed_from"] == "sub__tex"  # 0.62: the same input and settings, its files moved to the new name
 
 
 def test_a_csv_manifest_refuses_cells_its_header_does_not_name(tmp_path):

@@ -194,3 +194,41 @@ def test_a_renamed_exemplar_keeps_its_files_under_the_new_name(tmp_path, monkeyp
     assert last["rock"]["renamed_to"] == "granite" and last["Slate"]["outputs"][1] == "Slate/Slate_1_rough.png"
     results = batch.run(src / "list.csv", out, size=32, seed=1, count=2, fit=FIT, workers=1)  # nothing to move now
     assert [(r["skipped"], r.get("renamed")) for r in results] == [(True, None), (True, None)]
+
+
+def test_a_failed_try_after_a_finished_one_does_not_make_it_again(tmp_path):
+    # A share that dropped for a while (its exemplars "no such file"), a worker out of memory: a failed try moves no
+    # file, so the folder still holds the finished try's files. 0.61 took the failed line as the exemplar's state and
+    # fitted it again once its input was back (a studio's thousands after a NAS blip); 0.62 skips it as done.
+    src, out = make_folder(tmp_path / "src", 2), tmp_path / "out"
+    (src / "list.csv").write_text("path\ne0.png\ne1.png\n")
+    first = run(src / "list.csv", out)
+    (src / "e0.png").rename(tmp_path / "away.png")
+    assert [r["status"] for r in run(src / "list.csv", out)] == ["failed", "ok"]  # e0: no such file
+    (tmp_path / "away.png").rename(src / "e0.png")
+    again = run(src / "list.csv", out, task=lambda job: pytest.fail(f"{job['name']} made again"))
+    assert [(r["status"], r["skipped"]) for r in again] == [("ok", True), ("ok", True)]
+    assert again[0]["outputs"] == first[0]["outputs"] and all((out / f).is_file() for f in first[0]["outputs"])
+
+
+def kills_on_e0(job):
+    """The driver killed outright at e0 (the out-of-memory killer, a decoder's crash, in process); others a
+    stand-in's failed line."""
+    if job["name"] == "e0":
+        os.kill(os.getpid(), signal.SIGKILL)
+    return {"status": "failed", "error": "a stand-in", "cause": "run", "outputs": [], "model": None, "thumbnail": None}
+
+
+def test_an_exemplar_that_kills_the_run_goes_last_in_the_rerun(tmp_path):
+    # In process, an exemplar that kills the run (out of memory) came first again in every rerun: nothing after it
+    # was ever made (0.61). 0.62 hands out the exemplars a killed run left under way (their RUNNING file) last.
+    src, out = make_folder(tmp_path / "src"), tmp_path / "out"
+    code = ("import sys; from tghop import batch; import test_batch_resume as t; "
+            "batch.run(sys.argv[1], sys.argv[2], workers=1, task=t.kills_on_e0)")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (str(Path(__file__).parent),
+                                                                   os.environ.get("PYTHONPATH")) if p)}
+    for _ in range(2):
+        p = subprocess.run([sys.executable, "-c", code, str(src), str(out)], env=env, capture_output=True, timeout=300)
+        assert p.returncode == -signal.SIGKILL, p.stderr[-2000:]
+    assert sorted(line["name"] for line in ledger(out)) == ["e1", "e2"]  # made in the rerun, before e0
+    assert (out / "e0" / batch.RUNNING).exists()

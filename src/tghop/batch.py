@@ -295,7 +295,8 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                           f"worker per core install it with: {INSTALL_HINT}", stacklevel=2)
             in_process = True
     task = process_exemplar if task is None else task
-    previous, earlier_files = read_ledger_files(outdir)
+    standing = {}  # the last line done of each exemplar, where only failed tries follow it (0.62)
+    previous, earlier_files = read_ledger_files(outdir, standing)
     keep_ledger_names(items, previous)
     orphans = find_orphans(outdir, earlier_files, [it["name"] for it in items])
     jobs, results, failed_before, renames = [], {}, 0, []
@@ -319,6 +320,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                "claim": claim}
         if is_done(previous.get(it["name"]), job, outdir):
             results[it["name"]] = {**previous[it["name"]], "skipped": True}
+        elif standing.get(it["name"]) not in (None, previous.get(it["name"])) \
+                and is_done(standing[it["name"]], job, outdir):  # failed tries since (its input missing a while):
+            results[it["name"]] = {**standing[it["name"]], "skipped": True}  # its files untouched (0.61 made it again)
         elif not retry_failed and is_known_failure(previous.get(it["name"]), job, __version__):
             results[it["name"]] = {**previous[it["name"]], "skipped": True}
             failed_before += 1
@@ -327,6 +331,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         else:
             jobs.append(job)
     orphans = [name for name in orphans if name not in {old for _, old in renames}]
+    # Those a killed run left under way last (0.62): in this process, an exemplar that kills it (out of memory, a
+    # decoder's crash) came first again on every rerun, and no exemplar after it was ever made (stable: else in order).
+    jobs.sort(key=lambda job: os.path.lexists(os.path.join(job["folder"], RUNNING)))
     own_client = ledger_file = None
     try:
         if (jobs or renames) and scheduler is not None and client is None:  # a move that fails: made on it

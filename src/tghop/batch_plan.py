@@ -379,11 +379,16 @@ def read_ledger(outdir) -> dict:
     return read_ledger_files(outdir)[0]
 
 
-def read_ledger_files(outdir):
+def read_ledger_files(outdir, standing=None):
     """:func:`read_ledger`'s lines, and the files every line of each exemplar lists (by name):
     an earlier run's outputs stay in its folder after a later line that lists none (a failed
-    try), until a run of it succeeds (:func:`remove_stale`)."""
+    try), until a run of it succeeds (:func:`remove_stale`). ``standing`` (a dict): gets, by name, the last
+    line done ("ok") of each exemplar where only failures its task returned follow it (0.62): such a task moved
+    no file (it moves them all at its end), so the folder still holds that line's files (:func:`tghop.batch.run`
+    skips them where that line's input and settings are the job's). A line ``interrupted``, a worker lost
+    (:func:`tghop.batch_dask`'s record, no ``worker``) or a rename ends it: files may have changed."""
     records, files = {}, {}
+    standing = {} if standing is None else standing
     try:
         text = (Path(outdir) / LEDGER).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):
@@ -395,6 +400,10 @@ def read_ledger_files(outdir):
             continue  # last value), arrays nested thousands deep (0.59: a traceback)
         if isinstance(rec, dict) and isinstance(rec.get("name"), str):
             records[rec["name"]] = rec
+            if rec.get("status") == "ok":
+                standing[rec["name"]] = rec
+            elif rec.get("status") != "failed" or not rec.get("worker"):
+                standing.pop(rec["name"], None)
             with contextlib.suppress(TypeError):  # a hand-edited line's odd fields list nothing
                 files.setdefault(rec["name"], set()).update(f for f in _listed_files(rec) if isinstance(f, str))
     return records, files

@@ -140,10 +140,13 @@ def holding_claim(folder, claim):
     if claim is None:
         yield True
         return
-    try:
-        fd = os.open(Path(folder) / RUNNING, os.O_RDWR)
-    except OSError:  # none: the exemplar's line was written (by this claim's run or a later one)
+    try:  # read only: a worker may run as another user than the driver that wrote it (flock needs no more)
+        fd = os.open(Path(folder) / RUNNING, os.O_RDONLY)
+    except FileNotFoundError:  # none: the exemplar's line was written (by this claim's run or a later one)
         yield False
+        return
+    except OSError:  # not readable here: unchecked, as before 0.62
+        yield True
         return
     try:
         _lock(fd)
