@@ -232,3 +232,48 @@ def test_an_exemplar_that_kills_the_run_goes_last_in_the_rerun(tmp_path):
         assert p.returncode == -signal.SIGKILL, p.stderr[-2000:]
     assert sorted(line["name"] for line in ledger(out)) == ["e1", "e2"]  # made in the rerun, before e0
     assert (out / "e0" / batch.RUNNING).exists()
+
+
+def test_ctrl_c_while_the_library_is_hashed_keeps_what_was_read(tmp_path, monkeypatch):
+    # A first run over a studio's library reads every file for its SHA-256 before any work (minutes for terabytes);
+    # 0.61 kept none of it after a Ctrl-C there, so the next run read them all again. 0.62 writes what it read.
+    src, out = make_folder(tmp_path / "src"), tmp_path / "out"
+    time.sleep(batch_plan.STAT_MARGIN + 0.1)  # files changed within it are not taken on trust
+    sha256, reads = batch_plan.file_sha256, []
+
+    def ctrl_c_at_the_third(path):
+        if len(reads) == 2:
+            raise KeyboardInterrupt
+        reads.append(path)
+        return sha256(path)
+
+    monkeypatch.setattr(batch_plan, "file_sha256", ctrl_c_at_the_third)
+    with pytest.raises(KeyboardInterrupt):
+        run(src, out)
+    reads.clear()
+    monkeypatch.setattr(batch_plan, "file_sha256", lambda path: reads.append(path) or sha256(path))
+    run(src, out, task=lambda job: {"status": "failed", "error": "a stand-in", "cause": "run", "outputs": [],
+                                    "model": None, "thumbnail": None})
+    assert [Path(path).name for path in reads] == ["e2.png"]  # e0 and e1 were hashed before the Ctrl-C
+
+
+def test_a_ctrl_c_while_an_exemplar_is_moved_to_its_new_name_loses_nothing(tmp_path, monkeypatch):
+    # The files moved and the ledger's lines that say so go together: a Ctrl-C between them would leave the files in
+    # the new folder without a line, and the next run would make the exemplar again.
+    src, out = make_folder(tmp_path / "src", 1), tmp_path / "out"
+    (src / "list.csv").write_text("path,name\ne0.png,rock\n")
+    run(src / "list.csv", out)
+    (src / "list.csv").write_text("path,name\ne0.png,granite\n")
+    move = batch.move_renamed
+
+    def ctrl_c_after_the_move(*args):
+        moved = move(*args)
+        signal.raise_signal(signal.SIGINT)
+        return moved
+
+    monkeypatch.setattr(batch, "move_renamed", ctrl_c_after_the_move)
+    with pytest.raises(KeyboardInterrupt):
+        run(src / "list.csv", out)
+    monkeypatch.undo()
+    [again] = run(src / "list.csv", out, task=lambda job: pytest.fail("made again"))
+    assert again["skipped"] and again["renamed_from"] == "rock" and (out / "granite" / "granite.png").is_file()

@@ -306,14 +306,22 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     # into place only while it is the claim there, so that a killed run's tasks that ran on (a --scheduler cluster)
     # cannot replace a rerun's files after its line (tghop.batch_task.holding_claim).
     claim = uuid.uuid4().hex
-    for it in items:
+    try:  # unchanged files not read again (0.58)
+        digests = [input_digest(it["path"], it.get("maps") or [], hashes, found) for it in items]
+    except BaseException:  # Ctrl-C while a library is read: what was hashed is kept (0.62; 0.61 read it all again)
+        if found:
+            with contextlib.suppress(OSError):
+                outdir.mkdir(parents=True, exist_ok=True)
+            write_hashes(outdir, hashes, found, [r.get("source") for r in previous.values()])
+        raise
+    for it, digest in zip(items, digests):
         settings = _settings(it["settings"], defaults, fit, generate)
         maps = it.get("maps") or []
         if maps:  # a material: its maps' names are settings too (none: the settings of a texture, as before)
             settings["maps"] = [name for name, _ in maps]
         job = {"name": it["name"], "source": str(it["path"]), "folder": str(outdir / it["name"]),
                "maps": [[name, str(file)] for name, file in maps],
-               "sha256": input_digest(it["path"], maps, hashes, found),  # unchanged files not read again
+               "sha256": digest,
                "settings": settings, "size": settings["size"],
                "count": settings["count"], "seed": settings["seed"], "fit": settings["fit"],
                "generate": {**generate, "tile": settings["tile"]}, "threads": None if in_process else 1,
@@ -475,20 +483,21 @@ def _move_renamed(outdir, ledger_file, renames, previous, earlier_files, jobs, r
     the old folder as "no longer in SOURCE"). One whose move fails goes to ``jobs``: it is made again."""
     for job, old in renames:
         mark_running(job, True)  # this run's claim: a killed run's task of the new name moves nothing in meanwhile
-        rec = move_renamed(outdir, previous[old], old, job)
-        if rec is None:
-            jobs.append(job)
-            continue
-        gone = {"name": old, "source": previous[old].get("source"), "sha256": previous[old].get("sha256"),
-                "settings": previous[old].get("settings"), "version": __version__, "status": "renamed",
-                "renamed_to": job["name"], "error": None, "cause": None, "outputs": [], "model": None,
-                "thumbnail": None, "finished": time.time()}
-        try:
-            append_ledger(ledger_file, rec, sync=False)
-            append_ledger(ledger_file, gone)
-        except OSError as exc:  # its files are in the new folder, without a line: the next run makes it again
-            raise _ledger_error(outdir, exc) from None
-        mark_running(job, False)
+        with ctrl_c_deferred():  # the move and its lines as one (a Ctrl-C between: moved, and made again)
+            rec = move_renamed(outdir, previous[old], old, job)
+            if rec is None:
+                jobs.append(job)
+                continue
+            gone = {"name": old, "source": previous[old].get("source"), "sha256": previous[old].get("sha256"),
+                    "settings": previous[old].get("settings"), "version": __version__, "status": "renamed",
+                    "renamed_to": job["name"], "error": None, "cause": None, "outputs": [], "model": None,
+                    "thumbnail": None, "finished": time.time()}
+            try:
+                append_ledger(ledger_file, rec, sync=False)
+                append_ledger(ledger_file, gone)
+            except OSError as exc:  # its files are in the new folder, without a line: the next run makes it again
+                raise _ledger_error(outdir, exc) from None
+            mark_running(job, False)
         remove_stale(outdir, earlier_files.get(job["name"], ()), rec)  # an older run's files of the new name
         results[job["name"]] = {**rec, "skipped": True, "renamed": True}
 
