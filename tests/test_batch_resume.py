@@ -277,3 +277,24 @@ def test_a_ctrl_c_while_an_exemplar_is_moved_to_its_new_name_loses_nothing(tmp_p
     monkeypatch.undo()
     [again] = run(src / "list.csv", out, task=lambda job: pytest.fail("made again"))
     assert again["skipped"] and again["renamed_from"] == "rock" and (out / "granite" / "granite.png").is_file()
+
+
+def test_compacting_keeps_the_lines_that_say_a_finished_try_no_longer_stands(tmp_path, monkeypatch):
+    # A worker lost on every try after a finished try (it may have moved some files before it died) ends what that
+    # try's line says of the folder: compaction dropped such a line (it lists no file), and the exemplar was then
+    # taken as done by that earlier line.
+    out = tmp_path / "out"
+    (out / "x").mkdir(parents=True)
+    (out / "x" / "x.png").write_bytes(b"x")
+    tried = {"name": "x", "status": "failed", "worker": "host:1", "outputs": []}
+    lines = [tried] * 10 + [{"name": "x", "status": "ok", "outputs": ["x/x.png"]},
+                            {"name": "x", "status": "failed", "error": "the worker running it died on every try"},
+                            tried]
+    (out / batch.LEDGER).write_text("".join(json.dumps(line) + "\n" for line in lines))
+    before = {}
+    batch_plan.read_ledger_files(out, before)
+    monkeypatch.setattr(batch_plan, "COMPACT_MIN", 1)
+    assert batch_plan.compact_ledger(out) == 10
+    after = {}
+    batch_plan.read_ledger_files(out, after)
+    assert before == after == {}

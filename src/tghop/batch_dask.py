@@ -243,8 +243,10 @@ def _died_record(job, exc, retries) -> dict:
                  "machine or a smaller size")
     else:
         error = one_line(exc)
+    # task_lost (0.62): it may have moved files before its worker died, so an earlier line done no longer says the
+    # exemplar's folder (tghop.batch_plan.read_ledger_files' standing)
     return {"status": "failed", "error": error, "cause": "run", "outputs": [], "model": None, "thumbnail": None,
-            "seed_used": job.get("seed"), "started": None, "seconds": None}
+            "seed_used": job.get("seed"), "started": None, "seconds": None, "task_lost": True}
 
 
 def connect(scheduler):

@@ -385,8 +385,8 @@ def read_ledger_files(outdir, standing=None):
     try), until a run of it succeeds (:func:`remove_stale`). ``standing`` (a dict): gets, by name, the last
     line done ("ok") of each exemplar where only failures its task returned follow it (0.62): such a task moved
     no file (it moves them all at its end), so the folder still holds that line's files (:func:`tghop.batch.run`
-    skips them where that line's input and settings are the job's). A line ``interrupted``, a worker lost
-    (:func:`tghop.batch_dask`'s record, no ``worker``) or a rename ends it: files may have changed."""
+    skips them where that line's input and settings are the job's). A line ``interrupted``, a task lost
+    (its worker dead on every try) or a rename ends it: files may have changed (:func:`_ends_standing`)."""
     records, files = {}, {}
     standing = {} if standing is None else standing
     try:
@@ -402,11 +402,21 @@ def read_ledger_files(outdir, standing=None):
             records[rec["name"]] = rec
             if rec.get("status") == "ok":
                 standing[rec["name"]] = rec
-            elif rec.get("status") != "failed" or not rec.get("worker"):
+            elif _ends_standing(rec):
                 standing.pop(rec["name"], None)
             with contextlib.suppress(TypeError):  # a hand-edited line's odd fields list nothing
                 files.setdefault(rec["name"], set()).update(f for f in _listed_files(rec) if isinstance(f, str))
     return records, files
+
+
+def _ends_standing(rec: dict) -> bool:
+    """Whether a ledger line may follow files moved into its exemplar's folder (:func:`read_ledger_files`'
+    ``standing``): any but "ok" and a failure its task returned (which moved none), i.e. "interrupted", "renamed"
+    and a task lost (its worker died on every try, or it raised: :mod:`tghop.batch_dask`'s ``task_lost`` record;
+    0.61 wrote that without the field, its error said so)."""
+    status = rec.get("status")
+    return status != "ok" and (status != "failed" or bool(rec.get("task_lost"))
+                               or str(rec.get("error") or "").startswith("the worker running it died"))
 
 
 def keep_ledger_names(items, previous) -> None:
@@ -496,7 +506,8 @@ def sync_ledger(fh) -> None:
 def compact_ledger(outdir: Path, known: int = 0) -> int:
     """Rewrite the ledger without its superseded lines where they are many (0.59; 0.58's only grew, a line
     per exemplar made again): at least :data:`COMPACT_MIN`, and as many as the lines kept, so that a ledger
-    is rewritten at most once per as many lines as it holds. Kept: each exemplar's last line, and each earlier
+    is rewritten at most once per as many lines as it holds. Kept: each exemplar's last line, each line that may
+    follow files moved in (0.62: :func:`read_ledger_files`' ``standing`` reads the same), and each earlier
     line that lists a file no later kept line of its exemplar lists (:func:`read_ledger_files` reads the same
     records and files from the new ledger: :func:`remove_stale` and :func:`prune_orphans` still find every
     file a run made); dropped: the others, and lines torn by a crash. Called by a run while it holds the
@@ -530,7 +541,7 @@ def compact_ledger(outdir: Path, known: int = 0) -> int:
         except TypeError:  # a hand-edited line's odd fields: kept as it is
             files = None
         seen = covered.get(rec["name"])
-        if seen is None or files is None or files - seen:
+        if seen is None or files is None or files - seen or _ends_standing(rec):  # the same standing line after
             keep.append(i)
             covered.setdefault(rec["name"], set()).update(files or ())
     dropped = sum(1 for line in lines if line.strip()) - len(keep)

@@ -32,8 +32,9 @@ STAGE = (".partial.", ".tmp")
 #: files into place only while the claim is its own (:func:`holding_claim`).
 RUNNING = ".batch-running"
 #: The error of a task whose exemplar another run claimed since (0.62): a killed run's task that ran on.
-SUPERSEDED = ("superseded: another run of this batch claimed this exemplar since this task was handed out (the run "
-              "that handed it out was stopped or killed); its files were left to that run")
+SUPERSEDED = ("superseded: this exemplar's claim (its .batch-running file) was no longer this task's run's when its "
+              "files were to be moved in: another run claimed it since (the run that handed it out was stopped or "
+              "killed), or the file was removed; its files were dropped, and the next run makes it again")
 #: Longest side of the exemplar thumbnail of the contact sheet, and its file in NAME/.
 THUMBNAIL, THUMBNAIL_FILE = 128, "exemplar.png"
 #: The process-wide thread limits of the tasks running in this process (:func:`task_threads`).
