@@ -141,12 +141,17 @@ def holding_claim(folder, claim):
     if claim is None:
         yield True
         return
-    try:  # read only: a worker may run as another user than the driver that wrote it (flock needs no more)
-        fd = os.open(Path(folder) / RUNNING, os.O_RDONLY)
-    except FileNotFoundError:  # none: the exemplar's line was written (by this claim's run or a later one)
-        yield False
-        return
-    except OSError:  # not readable here: unchecked, as before 0.62
+    fd = None
+    for mode in (os.O_RDWR, os.O_RDONLY):  # NFS locks a file opened for writing; a worker of another user reads it
+        try:
+            fd = os.open(Path(folder) / RUNNING, mode)
+            break
+        except FileNotFoundError:  # none: the exemplar's line was written (by this claim's run or a later one)
+            yield False
+            return
+        except OSError:
+            continue
+    if fd is None:  # not readable here: unchecked, as before 0.62
         yield True
         return
     try:
