@@ -181,31 +181,48 @@ def in_saved(tmp_path, picture, saved_material, monkeypatch):
     return picture
 
 
-def test_cli_inpaint_and_extend_with_maps(tmp_path, in_saved):
-    images, hole = in_saved
-    code, out = run("inpaint", "wall.png", "mask.png", "--maps", "wall_normal.png", "h.png",
-                    "--source", "mat.npz", "-o", "out.png", "--seed", "3")
-    assert code == 0, out
-    albedo = load_image("out.png", dtype=None)
+@pytest.fixture(scope="module")
+def plain_fills(picture, saved_material, tmp_path_factory):
+    """The plain fills that several CLI tests check or compare theirs with, made once (the tests only read them):
+    ``tghop inpaint`` of the picture's hole and ``tghop extend`` to 128x192 (anchor left) with its two maps and
+    :func:`saved_material`, seed 3, in a folder of their own. Returns (the folder, each command's output)."""
+    d = tmp_path_factory.mktemp("plain")
+    _write(d, picture)
+    shutil.copyfile(saved_material, d / "mat.npz")
+    maps = ["--maps", str(d / "wall_normal.png"), str(d / "h.png"), "--source", str(d / "mat.npz"), "--seed", "3"]
+    said = {}
+    for command, args in (("inpaint", [str(d / "wall.png"), str(d / "mask.png"), *maps, "-o", str(d / "out.png")]),
+                          ("extend", [str(d / "wall.png"), *maps, "-o", str(d / "big.png"), "--size", "128x192",
+                                      "--anchor", "left"])):
+        code, said[command] = run(command, *args)
+        assert code == 0, said[command]
+    return d, said
+
+
+def test_cli_inpaint_and_extend_with_maps(picture, plain_fills):
+    # `tghop inpaint IMAGE MASK --maps ... -o out.png --seed 3` and `tghop extend IMAGE --maps ... -o big.png
+    # --size 128x192 --anchor left --seed 3`, run by the fixture
+    images, hole = picture
+    d, _ = plain_fills
+    albedo = load_image(d / "out.png", dtype=None)
     np.testing.assert_array_equal(albedo[~hole], images["albedo"][~hole])
-    normal, depth = load_image("out_wall_normal.png", dtype=None, with_depth=True)
+    normal, depth = load_image(d / "out_wall_normal.png", dtype=None, with_depth=True)
     assert depth == 16 and normal.shape == (SIZE, SIZE, 3)
-    height, depth = load_image("out_h.png", dtype=None, with_depth=True)
+    height, depth = load_image(d / "out_h.png", dtype=None, with_depth=True)
     assert depth == 8 and height.shape == (SIZE, SIZE, 1)
-    code, out = run("extend", "wall.png", "--maps", "wall_normal.png", "h.png", "--source", "mat.npz",
-                    "-o", "big.png", "--size", "128x192", "--anchor", "left", "--seed", "3")
-    assert code == 0, out
-    big = load_image("big.png", dtype=None)
+    big = load_image(d / "big.png", dtype=None)
     assert big.shape == (SIZE, 192, 3)
     np.testing.assert_array_equal(big[:, :SIZE], images["albedo"])
-    assert load_image("big_h.png").shape == (SIZE, 192, 1)
+    assert load_image(d / "big_h.png").shape == (SIZE, 192, 1)
 
 
-def test_cli_stages_with_maps_writes_each_steps_maps_the_last_the_output(tmp_path, in_saved):
+def test_cli_stages_with_maps_writes_each_steps_maps_the_last_the_output(tmp_path, in_saved, plain_fills):
     # 0.60 refused it ("--stages applies to a picture's fill, not a material's maps; drop it").
     images, hole = in_saved
     maps = ("--maps", "wall_normal.png", "h.png", "--source", "mat.npz", "--seed", "3")
-    for command, args in (("inpaint", ("mask.png",)), ("extend", ("--size", "128x192", "--anchor", "left"))):
+    plain, _ = plain_fills  # the same commands without --stages: out.png, big.png
+    for command, args, without in (("inpaint", ("mask.png",), "out"),
+                                   ("extend", ("--size", "128x192", "--anchor", "left"), "big")):
         code, out = run(command, "wall.png", *args, *maps, "-o", f"{command}.png", "--stages")
         assert code == 0, out
         steps = ["quilt", "seams", "refine", "patch-refine", "maps"]
@@ -218,14 +235,13 @@ def test_cli_stages_with_maps_writes_each_steps_maps_the_last_the_output(tmp_pat
             assert np.array_equal(load_image(f"{command}_maps{m}.png", dtype=None),
                                   load_image(f"{command}{m}.png", dtype=None)), m
         assert not np.array_equal(load_image(f"{command}_quilt.png"), load_image(f"{command}.png"))
-        code, out = run(command, "wall.png", *args, *maps, "-o", f"plain_{command}.png")  # the same without it
-        assert code == 0, out
-        for m in ("", "_wall_normal", "_h"):
-            assert np.array_equal(load_image(f"plain_{command}{m}.png", dtype=None),
+        for m in ("", "_wall_normal", "_h"):  # the same without it
+            assert np.array_equal(load_image(plain / f"{without}{m}.png", dtype=None),
                                   load_image(f"{command}{m}.png", dtype=None)), m
 
 
-def test_cli_inpaint_with_maps_warns_once_of_the_maps_a_format_writes_with_fewer_bits(tmp_path, in_saved):
+def test_cli_inpaint_with_maps_warns_once_of_the_maps_a_format_writes_with_fewer_bits(tmp_path, in_saved,
+                                                                                         plain_fills):
     # A 16-bit map written as JPEG lost its depth without a word: one warning names it (as synth's).
     images, hole = in_saved
     args = ["inpaint", "wall.png", "mask.png", "--maps", "wall_normal.png", "h.png", "--source", "mat.npz", "--seed",
@@ -235,9 +251,9 @@ def test_cli_inpaint_with_maps_warns_once_of_the_maps_a_format_writes_with_fewer
     assert [line for line in out.splitlines() if line.startswith("Warning")] == [
         "Warning: map wall_normal (16-bit) has more bits a channel than JPEG holds, but is written with 8; name "
         "the output .png, .tif or .tiff to keep them"]
-    for name in ("out.png", "out.tif"):  # every depth held
-        code, out = run(*args, "-o", name)
-        assert code == 0 and "Warning" not in out, out
+    code, out = run(*args, "-o", "out.tif")  # every depth held
+    assert code == 0 and "Warning" not in out, out
+    assert "Warning" not in plain_fills[1]["inpaint"]  # the same command's -o out.png
 
 
 def test_cli_inpaint_with_maps_fits_a_material_on_the_picture(tmp_path):
@@ -256,8 +272,8 @@ def test_cli_inpaint_with_maps_fits_a_material_on_the_picture(tmp_path):
 
 
 @pytest.fixture(scope="module")
-def folder(tmp_path_factory, picture):
-    """The picture's files, saved materials of two maps and of one, and a texture model."""
+def folder(tmp_path_factory, picture, saved_material):
+    """The picture's files, saved materials of two maps (:func:`saved_material`) and of one, and a texture model."""
     d = tmp_path_factory.mktemp("fill")
     _write(d, picture)
     (d / "sub").mkdir()
@@ -267,9 +283,7 @@ def folder(tmp_path_factory, picture):
         save_image(picture[0]["height"], d / "sub" / f"{'h' * 70}{end}.png")
     save_image(picture[0]["height"], d / "sub" / "albedo.png")
     save_image(picture[0]["height"][:64], d / "small.png")
-    two = Material(model=TGHop(**FAST), rng=0).fit(picture[0]["albedo"], {
-        "wall_normal": picture[0]["normal"], "h": picture[0]["height"]})
-    save_model(two, d / "mat.npz")
+    shutil.copyfile(saved_material, d / "mat.npz")
     save_model(Material(model=TGHop(**FAST), rng=0).fit(picture[0]["albedo"], {"h": picture[0]["height"]}),
                d / "one.npz")
     save_model(TGHop(**FAST).fit(picture[0]["albedo"]), d / "tex.npz")
@@ -319,16 +333,16 @@ def test_cli_bad_input_with_maps_is_one_line_and_writes_nothing(folder, monkeypa
     assert sorted(p.name for p in folder.rglob("*")) == before
 
 
-def test_cli_fill_count_writes_a_set_of_maps_per_fill(tmp_path, in_saved):
+def test_cli_fill_count_writes_a_set_of_maps_per_fill(tmp_path, in_saved, plain_fills):
     # --count on inpaint/extend --maps (0.59): one fit, a set per fill, numbered as synth's (out_2_h.png)
     maps = ["--maps", "wall_normal.png", "h.png", "--source", "mat.npz", "--seed", "3"]
-    for args in (["inpaint", "wall.png", "mask.png", *maps], ["extend", "wall.png", *maps, "--size", "128x160"]):
-        code, out = run(*args, "-o", "one.png")
-        assert code == 0, out
+    plain, _ = plain_fills  # the same commands without --count: out.png, big.png
+    for args, one in ((["inpaint", "wall.png", "mask.png", *maps], "out"),
+                      (["extend", "wall.png", *maps, "--size", "128x192", "--anchor", "left"], "big")):
         code, out = run(*args, "-o", "two.png", "--count", "2")
         assert code == 0 and "(and 1 more set)" in out, out
         for name in ("", "_wall_normal", "_h"):
-            assert (tmp_path / f"one{name}.png").read_bytes() == (tmp_path / f"two_1{name}.png").read_bytes()
+            assert (plain / f"{one}{name}.png").read_bytes() == (tmp_path / f"two_1{name}.png").read_bytes()
             assert (tmp_path / f"two_1{name}.png").read_bytes() != (tmp_path / f"two_2{name}.png").read_bytes()
 
 
