@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from tghop import batch, batch_plan, data
+from tghop import batch, batch_dask, batch_plan, data
 from tghop._errors import TGHopError
 from tghop.imageio import save_image
 
@@ -1416,7 +1416,7 @@ def test_local_cluster_run(tmp_path, cluster):
     assert [r["skipped"] for r in again] == [True, True, True, True]  # bad and flat: their input failed
 
 
-def test_cli_to_a_scheduler_address(tmp_path, cluster):
+def test_cli_to_a_scheduler_address(tmp_path, cluster, monkeypatch):
     local, fixture_client = cluster
     make_folder(tmp_path / "src", bad=False)
     rgba = np.concatenate([data.bricks(64, rng=3), np.ones((64, 64, 1))], axis=2)
@@ -1431,6 +1431,7 @@ def test_cli_to_a_scheduler_address(tmp_path, cluster):
     assert err.count("Warning: a: a.png: alpha channel dropped\n") == 1 and "UserWarning" not in err
     assert {line["name"]: line["warnings"] for line in ledger(tmp_path / "out")} == {
         "a": ["a.png: alpha channel dropped"], "sub__a": []}
+    monkeypatch.setattr(batch_dask, "CONNECT_TIMEOUT", "1s")  # nothing listens there: Dask tries until then
     code, _, err, exc = invoke("batch", "src", "-o", "out2", "--scheduler", "tcp://127.0.0.1:9", *CLI_FAST,
                                cwd=tmp_path)
     assert_one_line(code, err, "cannot reach the Dask scheduler", exception=exc)

@@ -249,13 +249,19 @@ def _died_record(job, exc, retries) -> dict:
             "seed_used": job.get("seed"), "started": None, "seconds": None, "task_lost": True}
 
 
+#: How long :func:`connect` tries to reach a scheduler (Dask tries again until then, a refused connection too: one
+#: starting up may not listen yet).
+CONNECT_TIMEOUT = "5s"
+
+
 def connect(scheduler):
-    """A client of the Dask scheduler at address ``scheduler``; one line when it cannot be reached."""
+    """A client of the Dask scheduler at address ``scheduler``; one line when it cannot be reached within
+    :data:`CONNECT_TIMEOUT`."""
     distributed = import_distributed()
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            client = distributed.Client(scheduler, timeout="5s")
+            client = distributed.Client(scheduler, timeout=CONNECT_TIMEOUT)
     except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
         reason = one_line(exc)
     else:
