@@ -14,6 +14,8 @@ from tghop.imageio import load_image, save_image
 from tghop.material import Material, MapNameClashError, check_map_names, example_maps, renormalise
 from tghop.modelfile import load_model, save_model
 
+from conftest import save_texture
+
 SIZE = (96, 96)
 #: A small, fast joint model (a few seconds on 2 cores).
 FAST = dict(max_patches=1500, n_clusters=10, layout_factor=None)
@@ -497,7 +499,7 @@ def test_cli_stages_of_a_material_writes_each_steps_maps_the_last_its_output(mat
     # 0.60 refused synth MAT --stages ("applies to a texture model, not a material").
     save_model(material, tmp_path / "mat.npz")
     res = CliRunner().invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", str(tmp_path / "o.png"), "--size",
-                                    "64", "--seed", "1", "-q", "--stages"])
+                                    "64", "--seed", "1", "-q", "--stages", "--pool", "1000"])
     assert res.exit_code == 0, res.output
     assert ("steps written beside it, each with its maps: o_quilt.png, o_seams.png, o_refine.png, o_patch-refine.png, "
             "o_colour.png, o_maps.png") in res.output
@@ -510,7 +512,7 @@ def test_cli_stages_of_a_material_writes_each_steps_maps_the_last_its_output(mat
     plain = tmp_path / "plain"
     plain.mkdir()
     res = CliRunner().invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", str(plain / "o.png"), "--size", "64",
-                                    "--seed", "1", "-q"])
+                                    "--seed", "1", "-q", "--pool", "1000"])
     assert res.exit_code == 0 and np.array_equal(load_image(plain / "o.png"), load_image(tmp_path / "o.png"))
 
 
@@ -544,7 +546,8 @@ def test_cli_patch_refines_a_materials_albedo(material, tmp_path):
     out = {}
     for steps in ("0", "3"):
         res = CliRunner().invoke(main, ["synth", str(tmp_path / "mat.npz"), "-o", str(tmp_path / f"o{steps}.png"),
-                                        "--size", "64", "--seed", "1", "-q", "--patch-refine", steps])
+                                        "--size", "64", "--seed", "1", "-q", "--patch-refine", steps, "--pool",
+                                        "1000"])
         assert res.exit_code == 0, res.output
         out[steps] = {p.name[2:]: load_image(p) for p in tmp_path.glob(f"o{steps}*.png")}
     assert set(out["3"]) == {".png", "_normal.png", "_roughness.png", "_height.png"}
@@ -818,7 +821,7 @@ def test_two_materials_morph_every_map_alike(exemplar, maps, tmp_path, monkeypat
     np.testing.assert_allclose(np.linalg.norm(strip["Stone_Normal"] * 2 - 1, axis=2), 1.0, atol=1e-5)
     save_model(stone, tmp_path / "stone.npz")
     save_model(gravel, tmp_path / "gravel.npz")
-    save_model(TGHop(**FAST).fit(cells), tmp_path / "tex.npz")
+    save_texture(tmp_path / "tex.npz")  # a texture model: refused before any work
     monkeypatch.chdir(tmp_path)
     res = CliRunner().invoke(main, ["morph", "stone.npz", "gravel.npz", "-o", "strip.png", "--size", "48x160",
                                     "--grid", "2", "--seed", "1", "-q"])
