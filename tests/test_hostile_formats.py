@@ -244,8 +244,9 @@ def test_a_model_file_whose_metadata_repeats_a_key_is_refused_naming_it(tmp_path
     np.savez(path, __meta__=np.array('{"format": "tghop-model", "format_version": 9, "format_version": 1}'))
     with pytest.raises(ModelFileError) as error:
         load_model(path)
-    assert str(error.value) == f"{path}: corrupt model metadata (the key 'format_version' is given twice); fit the " \
-                               "model again"
+    assert str(error.value) == f"{path}: this model file was edited, damaged or written by another program, so " \
+        f"tghop cannot use it; fit the model again from its exemplar: tghop fit EXEMPLAR -o {path} (what is wrong: " \
+        "the metadata gives the key 'format_version' twice)"
 
 
 def test_a_model_file_whose_array_header_declares_far_more_than_it_holds_names_that_array(tmp_path):

@@ -439,8 +439,11 @@ def test_a_material_whose_albedo_patches_say_format_version_10_is_refused(materi
         del meta["material"]["patch_levels"]
     with open(tmp_path / "v10.npz", "wb") as fh:
         np.savez(fh, **{**arrays, "__meta__": np.array(json.dumps(meta))})
-    with pytest.raises(ModelFileError, match=r"v10.npz: invalid tghop model \(the albedo's patch statistics "
-                                             r"\(material_patch.\*\) in format version 10; they are version 11's"):
+    with pytest.raises(ModelFileError, match=r"v10.npz: this model file was edited, damaged or written by another "
+                                             r"program, so tghop cannot use it; fit the material again from its maps: "
+                                             r"tghop fit ALBEDO --maps MAP \.\.\. -o \S+v10.npz \(what is wrong: the "
+                                             r"albedo's patch statistics \(material_patch.\*\) in format version 10; "
+                                             r"they are version 11's\)$"):
         load_model(tmp_path / "v10.npz", material=True)
 
 
@@ -468,7 +471,7 @@ def test_a_material_file_whose_map_names_were_edited_says_what_is_wrong(material
     arrays = {k.replace(f"material.{old}.", f"material.{new}."): v for k, v in arrays.items()}
     with open(tmp_path / "edited.npz", "wb") as fh:
         np.savez(fh, **{**arrays, "__meta__": np.array(json.dumps(meta))})
-    with pytest.raises(ModelFileError, match=re.escape(f"edited.npz: invalid tghop model ({said}); fit the model")):
+    with pytest.raises(ModelFileError, match=re.escape(f"edited.npz (what is wrong: {said})")):
         load_model(tmp_path / "edited.npz", material=True)
 
 

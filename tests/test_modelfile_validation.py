@@ -158,6 +158,10 @@ def test_tampered_array_is_one_model_file_error_naming_it(saved, tmp_path, case)
     assert "\n" not in message
     assert name in message and fragment in message, message
     assert "fit the model again" in message and "np." not in message  # plain numbers, not NumPy's reprs
+    # 0.62: the file, what happened to it and the fix first, then the internal array names (0.61 began with them)
+    head = (f"{path}: this model file was edited, damaged or written by another program, so tghop cannot use it; fit "
+            f"the model again from its exemplar: tghop fit EXEMPLAR -o {path} ")
+    assert message.startswith(head) and message.index(name) > len(head), message
 
 
 @pytest.mark.parametrize("case", ["hop1 kernels", "hop2 parent", "codebook bins", "colour reversed",
@@ -384,7 +388,8 @@ def test_a_parts_generator_is_recorded_older_files_load_without_it_and_a_bad_rec
     for bad in ({"bit_generator": "os.system", "seed": 0, "state": {}}, {"state": 1},
                 {**meta["ichm_rng"], "state": {"bit_generator": "PCG64", "state": "x"}}):
         _write(tmp_path / "bad.npz", {**arrays, "__meta__": np.array(json.dumps({**meta, "ichm_rng": bad}))})
-        with pytest.raises(ModelFileError, match=r"^.*bad\.npz: invalid tghop model \(the metadata's ichm_rng "):
+        with pytest.raises(ModelFileError, match=r"^.*bad\.npz: this model file was edited, .*\(what is wrong: the "
+                                                 r"metadata's ichm_rng "):
             load_model(tmp_path / "bad.npz")
 
 
@@ -417,7 +422,7 @@ def test_a_loaded_models_saabs_have_every_channels_energy_and_older_files_say_wh
     for bad in ([[1.0] * 12] * 2, [[1.0] * 11], [[True] * 12], [[1e400] * 12], "x"):
         meta["hops"][0]["saab_energy"] = bad
         _write(tmp_path / "bad.npz", {**arrays, "__meta__": np.array(json.dumps(meta))})
-        with pytest.raises(ModelFileError, match=r"saab_energy of a hop .*; fit the model again$"):
+        with pytest.raises(ModelFileError, match=r"; fit the model again .*saab_energy of a hop .*\)$"):
             load_model(tmp_path / "bad.npz")
 
 
@@ -443,8 +448,9 @@ def test_a_file_of_a_newer_tghop_warns_naming_both_versions(saved, tmp_path):
     assert "upgrade tghop" in said[0]
     for version in ("0.1.0", __version__, f"{__version__}.dev1", "not a version", None, 7):
         assert load(version) == [], version
-    with pytest.raises(ModelFileError, match=r"unknown setting 'brand_new'\); it was made by tghop 99\.0\.0, newer "
-                                             r"than this .*: upgrade tghop"):
+    with pytest.raises(ModelFileError, match=r"v\.npz: made by tghop 99\.0\.0, newer than this .*, and this one cannot "
+                                             r"use it; upgrade tghop, or fit the model again .*unknown setting "
+                                             r"'brand_new'\)$"):
         load("99.0.0", brand_new=1)
 
 
@@ -583,7 +589,8 @@ def test_a_file_objects_model_gets_every_check_a_files_does(saved, tmp_path, mon
         (_bytes({**arrays, "hop1.kernels": np.array([{"a": 1}], dtype=object)}),
          r"the BytesIO given: not a tghop model file \(an array of Python objects, which tghop does not unpickle\)"),
         (_bytes({**arrays, "hop1.kernels": arrays["hop1.kernels"][:, :5]}),
-         r"the BytesIO given: hop1\.kernels has shape \(9, 5\) but should be"),
+         r"the BytesIO given: this model file was edited, .* \(what is wrong: hop1\.kernels has shape \(9, 5\) but "
+         r"should be"),
         (_bytes(arrays)[:50_000], r"the BytesIO given: truncated, corrupt or not a tghop model file"),
         (_png(tmp_path),
          r"the BytesIO given is an image, not a model file; fit a model from it first: TGHop\(\)\.fit"),
@@ -653,5 +660,6 @@ def test_a_generator_given_as_rng_is_recorded_as_the_fit_began_so_a_loaded_model
         g_arrays = {k: f[k] for k in f.files}
     for bad in ({"model__rng": meta["fit_rngs"]["rng"]}, {"rng": {"state": 1}}, [1]):
         _write(tmp_path / "bad.npz", {**g_arrays, "__meta__": np.array(json.dumps({**meta, "fit_rngs": bad}))})
-        with pytest.raises(ModelFileError, match=r"bad\.npz: invalid tghop model \(the metadata's fit_rngs"):
+        with pytest.raises(ModelFileError, match=r"bad\.npz: this model file was edited, .*\(what is wrong: the "
+                                                 r"metadata's fit_rngs"):
             load_model(tmp_path / "bad.npz")

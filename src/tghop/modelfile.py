@@ -273,16 +273,14 @@ def _read_archive(path, label):
     try:
         meta = loads_unique(str(arrays.pop("__meta__")))
     except RepeatedKeyError as exc:  # 0.58 kept the last value without a word
-        raise ModelFileError(f"{label}: corrupt model metadata (the key {exc.key[:60]!r} is given twice); fit the "
-                             "model again") from None
+        raise _unusable(label, None, f"the metadata gives the key {exc.key[:60]!r} twice") from None
     except (ValueError, TypeError, RecursionError):
-        raise ModelFileError(f"{label}: corrupt model metadata; fit the model again") from None
+        raise _unusable(label, None, "its metadata is not JSON") from None
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise ModelFileError(f"{label}: not a tghop model file; give a model file tghop wrote")
     version = meta.get("format_version")
     if not isinstance(version, int) or isinstance(version, bool):
-        raise ModelFileError(f"{label}: corrupt model metadata (format_version {version!r} is not an integer); "
-                             "fit the model again")
+        raise _unusable(label, meta, f"format_version {version!r} is not an integer")
     if version not in READABLE_VERSIONS:
         newer = version > READABLE_VERSIONS[-1]  # 0.59: said so (0.58 told only to refit)
         raise ModelFileError(
@@ -468,7 +466,7 @@ def _check_array(spec, arrays, dims, prefix):
     return None
 
 
-def _check_arrays(path, groups, arrays):
+def _check_arrays(path, groups, arrays, meta=None):
     """Every array of ``arrays`` against its spec; :class:`ModelFileError` naming the first
     bad one. ``groups``: ``[(prefix, specs), ...]`` (the model and its coarse layout model,
     each with its own dimensions). An array no spec names is refused too: what a format
@@ -481,12 +479,11 @@ def _check_arrays(path, groups, arrays):
             known.add(prefix + spec[0])
             problem = _check_array(spec, arrays, dims, prefix)
             if problem:
-                raise ModelFileError(f"{path}: {problem}; the model file is corrupt or was edited: "
-                                     "fit the model again")
+                raise _unusable(path, meta, problem)
     unknown = sorted(set(arrays) - known)
     if unknown:
-        raise ModelFileError(f"{path}: array {unknown[0]} is not part of a tghop model of this format version "
-                             "(an edited file or another program's); fit the model again")
+        raise _unusable(path, meta, f"array {unknown[0]} is not part of a tghop model of format version "
+                                    f"{meta.get('format_version')}")
 
 
 def load_model(path, *, material=False):
@@ -552,25 +549,24 @@ def load_model(path, *, material=False):
                 "patch_levels" in meta["material"] or any(n.startswith(MATERIAL_PATCH_PREFIX) for n in arrays)):
             # 0.60 read them: a version holds a fixed set of arrays, and these came with 11 (0.59)
             raise TGHopError(f"the albedo's patch statistics (material_patch.*) in format version "
-                             f"{meta['format_version']}; they are version {FORMAT_VERSION}'s, so the file was edited")
+                             f"{meta['format_version']}; they are version {FORMAT_VERSION}'s")
         groups = kind._array_specs(meta, quantised=quantised)
     except TGHopError as exc:
-        raise ModelFileError(f"{path}: invalid tghop model ({exc}); {_refit(meta)}") from None
+        raise _unusable(path, meta, exc) from None
     except (KeyError, TypeError, ValueError, IndexError, AttributeError, OverflowError) as exc:
-        raise ModelFileError(f"{path}: corrupt or incomplete tghop model metadata ({exc!r}); "
-                             f"{_refit(meta)}") from None
+        raise _unusable(path, meta, _metadata_problem(exc)) from None
     if kind is Material and not material:
         names = ", ".join(m["name"] for m in meta["material"]["maps"])
         raise ModelFileError(f"{path} is a material ({names}), not a plain model: a material makes every map at "
                              "once ('tghop synth', painted with --guide too; 'tghop inpaint' and 'extend' with --maps; "
                              "load_model(path, material=True)); for this, fit a plain model from its albedo")
-    _check_arrays(path, groups, arrays)
+    _check_arrays(path, groups, arrays, meta)
     try:
         model = kind._from_state(meta, arrays)
     except TGHopError as exc:
-        raise ModelFileError(f"{path}: invalid tghop model ({exc}); {_refit(meta)}") from None
+        raise _unusable(path, meta, exc) from None
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
-        raise ModelFileError(f"{path}: corrupt or incomplete tghop model ({exc}); {_refit(meta)}") from None
+        raise _unusable(path, meta, _metadata_problem(exc)) from None
     newer = _newer_maker(meta)
     if newer:
         warn(f"{path}: made by tghop {newer}, newer than this {__version__}, which reads it as a model of "
@@ -597,9 +593,26 @@ def _newer_maker(meta):
     return meta["tghop_version"] if pad(theirs) > pad(ours) else None
 
 
-def _refit(meta) -> str:
-    """The fix for a model file this tghop cannot use: a newer tghop's, upgrade; else fit again."""
-    newer = _newer_maker(meta)
-    if newer:
-        return f"it was made by tghop {newer}, newer than this {__version__}: upgrade tghop or fit the model again"
-    return "fit the model again"
+def _unusable(label, meta, detail) -> ModelFileError:
+    """The one message for a model file whose contents this tghop cannot use (0.62): the file, what happened to it
+    (a newer tghop's; else edited, damaged or another program's), the fix (the command that makes it again), and only
+    then what was found (``detail``: the array or metadata key, the internal names a user cannot act on). 0.61 put
+    the internal names first ("invalid tghop model (...)", "material_patch.patch.directions is not part of ...")."""
+    import shlex
+
+    material = isinstance(meta, dict) and "material" in meta
+    out = shlex.quote(str(label)) if isinstance(label, Path) else "MODEL.npz"
+    fix = f"tghop fit ALBEDO --maps MAP ... -o {out}" if material else f"tghop fit EXEMPLAR -o {out}"
+    newer = _newer_maker(meta) if isinstance(meta, dict) else None
+    what = (f"made by tghop {newer}, newer than this {__version__}, and this one cannot use it; upgrade tghop, or "
+            if newer else "this model file was edited, damaged or written by another program, so tghop cannot use "
+            "it; ")
+    return ModelFileError(f"{label}: {what}fit the {'material' if material else 'model'} again from its "
+                          f"{'maps' if material else 'exemplar'}: {fix} (what is wrong: {detail})")
+
+
+def _metadata_problem(exc) -> str:
+    """What a Python error met reading a model's metadata says, in words (0.61 gave its repr, "KeyError('x')")."""
+    if isinstance(exc, KeyError):
+        return f"the metadata has no {str(exc.args[0])[:60]!r}" if exc.args else "the metadata lacks a key"
+    return f"the metadata is not as tghop writes it: {str(exc)[:200]}"
