@@ -119,6 +119,11 @@ CASES = [
     (["info", "trunc.npz"], ["trunc.npz", "truncated"]),
     (["patches", "trunc.npz", "-o", "g.png"], ["trunc.npz", "truncated"]),
     (["fit", "trunc.npz", "-o", "m.npz"], ["model file, not an image"]),
+    # a model as the exemplar: what to do with it (0.61 stopped at "this command needs an image")
+    (["fit", "model.npz", "-o", "m.npz"], ["model.npz is a model file, not an image; this command needs an image (a "
+                                           "model is fitted already: 'tghop synth model.npz -o OUT.png' makes images"]),
+    (["fit", "model.npz", "--maps", "bricks.png", "-o", "m.npz"],
+     ["EXEMPLAR model.npz is a model file, not an image; give the material's colour map (albedo) image first"]),
     # fit options with a saved model
     (["synth", "model.npz", "-o", "o.png", "--k1", "9"], ["--k1", "saved model"]),
     (["synth", "model.npz", "-o", "o.png", "-N", "9", "--gamma", "0.1"], ["--clusters", "--gamma", "saved model"]),

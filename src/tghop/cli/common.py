@@ -364,7 +364,10 @@ def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=
     if is_model_file(spec):
         kind = model_file_kind(spec)
         hint = (" (a checkpoint goes to 'tghop cooc morph', 'tghop cooc edit' or 'tghop baseline cooc EXEMPLAR "
-                "--model CHECKPOINT')" if kind == COOC_CHECKPOINT else checkpoint_note(spec))
+                "--model CHECKPOINT')" if kind == COOC_CHECKPOINT else
+                # 0.62: what to do with a model instead (0.61 stopped at "needs an image")
+                f" (a model is fitted already: 'tghop synth {spec} -o OUT.png' makes images from it)"
+                if kind == "a model file" else checkpoint_note(spec))
         raise TGHopError(f"{spec} is {kind}, not an image; this command needs an image{hint}")
     _refuse_a_slip(spec, BUILTIN)
     return read_image(spec, downscale=downscale, dtype=dtype, with_depth=with_depth,

@@ -303,13 +303,14 @@ def _same_kind(specs, read, label):
     first = whole.index(True)
     if label != "SOURCE":
         other = "B" if label == "A" else "A"
-        raise TGHopError(f"{label} {specs[first]} is a material but {other} {specs[1 - first]} is not; morph two "
-                         "materials (fit each with 'tghop fit ALBEDO --maps ...') or two textures")
+        raise click.UsageError(f"{label} {specs[first]} is a material but {other} {specs[1 - first]} is not; morph two "
+                               "materials (fit each with 'tghop fit ALBEDO --maps ...') or two textures")
     for i, (spec, r, w) in enumerate(zip(specs, read, whole), start=1):
         if not w:
             what = "an exemplar image" if isinstance(r, np.ndarray) else "a texture model"
-            raise TGHopError(f"SOURCE {i} ({spec}) is {what} but SOURCE {first + 1} ({specs[first]}) is a material; "
-                             "paint with all materials (fit each with 'tghop fit ALBEDO --maps ...') or all textures")
+            raise click.UsageError(f"SOURCE {i} ({spec}) is {what} but SOURCE {first + 1} ({specs[first]}) is a "
+                                   "material; paint with all materials (fit each with 'tghop fit ALBEDO --maps ...') "
+                                   "or all textures")
 
 
 def _check_mixable(labels, read, options):

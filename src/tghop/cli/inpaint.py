@@ -291,10 +291,10 @@ def _model(picture, hole, image, source, source_is_model, scale, seed, progress,
         from ..modelfile import load_model
 
         model = load_model(source, material=True)
-        if hasattr(model, "names_"):  # a material fills with every map: --maps
-            raise TGHopError(f"--source {source} is a material ({', '.join(model.names_[1:])}); give --maps and its "
-                             f"maps after {'MASK' if hole is not None else 'IMAGE'}, in that order, or a texture "
-                             "model")
+        if hasattr(model, "names_"):  # a material fills with every map: --maps (a usage error, 0.62)
+            raise click.UsageError(f"--source {source} is a material ({', '.join(model.names_[1:])}); give --maps and "
+                                   f"its maps after {'MASK' if hole is not None else 'IMAGE'}, in that order, or a "
+                                   "texture model")
         _check_channels(picture, model.exemplar_shape_[2], image, source)
     _check_size(image, picture.shape, TGHop().patch_size if model is None else model.patch_size,
                 "" if source is None else " of --source's model" if model is not None
@@ -421,8 +421,8 @@ def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, 
     if output == "-":
         raise click.UsageError("--maps writes a file per map; give -o a file name (e.g. -o out.png)")
     if source is not None and not (source.lower().endswith(".npz") or is_model_file(source)):
-        raise TGHopError(f"--source {source} is an exemplar; with --maps give a saved material (tghop fit ALBEDO "
-                         "--maps ...), or leave --source out to fit one on IMAGE and its maps")
+        raise click.UsageError(f"--source {source} is an exemplar; with --maps give a saved material (tghop fit "
+                               "ALBEDO --maps ...), or leave --source out to fit one on IMAGE and its maps")
     refuse_albedo_as_map(map_paths, image)
     if source is None:  # a saved material's maps are given in its order, whatever their names
         command = "tghop inpaint {} MASK --maps" if grow is None else "tghop extend {} --maps"
@@ -436,13 +436,14 @@ def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, 
 
         material = load_model(source, material=True)
         if not hasattr(material, "names_"):
-            raise TGHopError(f"--source {source} is a texture model; with --maps give a saved material (tghop fit "
-                             "ALBEDO --maps ...), or leave --source out")
+            raise click.UsageError(f"--source {source} is a texture model; with --maps give a saved material (tghop "
+                                   "fit ALBEDO --maps ...), or leave --source out")
         if len(map_paths) != len(material.names_) - 1:
             n, given = len(material.names_) - 1, len(map_paths)
-            raise TGHopError(f"--source {source} is a material of {n} map{'s' if n != 1 else ''} "
-                             f"({', '.join(material.names_[1:])}) but {given} {'was' if given == 1 else 'were'} "
-                             "given; give its maps after --maps, in that order")
+            raise click.UsageError(f"--source {source} is a material of {n} map{'s' if n != 1 else ''} "
+                                   f"({', '.join(material.names_[1:])}) but {given} "
+                                   f"{'was' if given == 1 else 'were'} given; give its maps after --maps, in that "
+                                   "order")  # the arguments' count: a usage error (0.62; 1 before)
         _refuse_reordered(map_paths, material, source)
     names = material.names_[1:] if material is not None else map_names(map_paths)
     quiet_tifffile()

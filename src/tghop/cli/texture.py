@@ -66,7 +66,8 @@ def fit_material(spec, map_paths, options, *, exclude, downscale, progress):
     if is_builtin(spec):
         albedo, depth = load_exemplar(spec, dtype=None), 8
     elif is_model_file(spec):
-        raise TGHopError(f"EXEMPLAR {spec} is {model_file_kind(spec)}, not an image")
+        raise TGHopError(f"EXEMPLAR {spec} is {model_file_kind(spec)}, not an image; give the material's colour map "
+                         "(albedo) image first, its other maps after --maps")
     else:  # the albedo's alpha is transparency (warned of, as for a texture)
         albedo, depth = read_image(spec, dtype=None, downscale=downscale, with_depth=True,
                                    too_large_hint=HINT_DOWNSCALE_OPTION)
