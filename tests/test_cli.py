@@ -82,6 +82,8 @@ def test_synth_stages_writes_each_steps_image(model_path, workdir):
     r = run("synth", model_path, "-o", workdir / "st.png", "--size", "48x64", "--pool", "300", "--seed", "4",
             "--stages", "-q")
     assert r.returncode == 0, r.stderr.decode()
+    said = r.stderr.decode().splitlines()  # the output first, then its steps, as every command says them (0.62)
+    assert said[0].endswith("written to " + str(workdir / "st.png")) and said[1].startswith("steps written beside it: ")
     written = sorted(p.name for p in workdir.glob("st_*.png"))
     assert written == ["st_patch-refine.png", "st_quilt.png", "st_refine.png", "st_seams.png"]  # no guide this small
     image = np.asarray(Image.open(workdir / "st.png"))
@@ -96,8 +98,12 @@ def test_synth_stages_writes_each_steps_image(model_path, workdir):
     # A remix's steps (0.60: "--stages applies to one SOURCE"): the regions, the layers before the join, the image.
     r = run("synth", model_path, model_path, "-o", workdir / "two.png", "--size", "48x64", "--pool", "300",
             "--seed", "4", "--stages", "-q")
-    assert r.returncode == 0 and "steps written beside it: two_regions.png, two_layers.png, two_join.png" in \
-        r.stderr.decode(), r.stderr.decode()
+    assert r.returncode == 0 and "steps written beside it: two_regions.png, two_layer1_quilt.png, " in \
+        r.stderr.decode() and ", two_layers.png, two_join.png" in r.stderr.decode(), r.stderr.decode()
+    # each layer's steps (0.62): one layer here, a model given twice being one
+    assert np.asarray(Image.open(workdir / "two_layer1_quilt.png")).shape[:2] == (48, 64)
+    assert not (workdir / "two_layer2_quilt.png").exists()
+    assert r.stderr.decode().index("written to") < r.stderr.decode().index("steps written"), r.stderr.decode()
     assert np.array_equal(np.asarray(Image.open(workdir / "two_join.png")), np.asarray(Image.open(workdir / "two.png")))
     assert np.asarray(Image.open(workdir / "two_regions.png")).shape == (48, 64)
 

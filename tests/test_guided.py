@@ -3,6 +3,7 @@ on textures made in code."""
 
 import copy
 import os
+import re
 import types
 
 import numpy as np
@@ -237,7 +238,17 @@ def test_return_stages_gives_the_regions_the_layers_before_the_join_and_the_resu
         out, stages = tghop.synthesize_guided(models, guide, transition=16, rng=4, dtype=dtype, return_stages=True,
                                               **GEN)
         assert np.array_equal(out, tghop.synthesize_guided(models, guide, transition=16, rng=4, dtype=dtype, **GEN))
-        assert list(stages) == ["regions", "layers", "join"]
+        # each layer's own steps between the regions and the layers, in pipeline order (0.62; 0.61 had none)
+        own = [[n for n in m.synthesize((96, 112), rng=0, return_stages=True, **GEN)[1] if n != "pool"]
+               for m in models]
+        assert list(stages) == ["regions", *(f"layer{i}_{n}" for i, names in enumerate(own, start=1) for n in names),
+                                "layers", "join"], list(stages)
+        assert {"quilt", "refine"} <= set(own[0])
+        for i in (1, 2):  # on the image's canvas; a layer's last step is the layer, as joined where its region is
+            mine = stages["regions"] == i - 1
+            last = stages[f"layer{i}_{own[i - 1][-1]}"]
+            assert last.shape == out.shape and last.dtype == np.float32
+            np.testing.assert_allclose(last[mine], stages["layers"][mine], atol=1e-6)
         assert np.array_equal(stages["regions"], (guide > 0).astype(np.float32))
         top = np.float32(255 if dtype == np.uint8 else 1)
         assert np.array_equal(stages["join"], (out / top).astype(np.float32))  # the last is the result
@@ -249,6 +260,7 @@ def test_return_stages_gives_the_regions_the_layers_before_the_join_and_the_resu
     material_stages = tghop.synthesize_guided([_as_material(m, e) for m, e in zip(models, exemplars)], guide,
                                               transition=16, rng=4, return_stages=True, **GEN)[1]
     assert list(material_stages["layers"]) == list(material_stages["join"]) == ["albedo", "height"]
+    assert list(material_stages["layer1_quilt"]) == ["albedo", "height"] and "layer2_refine" in material_stages
 
 
 def test_cli_stages_of_painted_materials_writes_each_steps_maps(models, exemplars, tmp_path):
@@ -263,8 +275,13 @@ def test_cli_stages_of_painted_materials_writes_each_steps_maps(models, exemplar
     r = cli("synth", tmp_path / "m0.npz", tmp_path / "m1.npz", "--guide", tmp_path / "map.png", "-o",
             tmp_path / "p.png", "--pool", "500", "--refine", "2", "--seed", "4", "--stages", "-q")
     assert r.returncode == 0, r.stderr.decode()
-    assert "steps written beside it, each with its maps: p_regions.png, p_layers.png, p_join.png" in r.stderr.decode()
-    assert sorted(p.name for p in tmp_path.glob("p*.png")) == sorted(
+    said = r.stderr.decode()
+    assert "steps written beside it, each with its maps: p_regions.png, p_layer1_quilt.png, " in said, said
+    assert ", p_layer2_maps.png, p_layers.png, p_join.png" in said, said  # each layer's steps too (0.62)
+    layer_files = [f"p_layer{i}_{s}{m}.png" for i in (1, 2) for s in ("quilt", "refine", "maps")
+                   for m in ("", "_height")]
+    assert set(layer_files) <= {p.name for p in tmp_path.glob("p_layer*.png")}
+    assert sorted(p.name for p in tmp_path.glob("p*.png") if not re.search(r"_layer\d", p.name)) == sorted(
         ["p.png", "p_height.png", "p_regions.png", "p_layers.png", "p_layers_height.png", "p_join.png",
          "p_join_height.png"])
     for m in ("", "_height"):  # the join's maps are those written
@@ -545,7 +562,8 @@ def test_morph_return_stages_gives_the_regions_the_layers_and_the_join_the_last_
     for dtype in (np.float64, np.uint8):
         out, stages = tghop.morph(models[0], models[1], (32, 96), dtype=dtype, return_stages=True, **kw)
         assert np.array_equal(out, tghop.morph(models[0], models[1], (32, 96), dtype=dtype, **kw))
-        assert list(stages) == ["regions", "layers", "join"]
+        assert list(stages)[:2] == ["regions", "layer1_quilt"] and list(stages)[-2:] == ["layers", "join"]
+        assert "layer2_quilt" in stages  # B's own steps (0.62)
         assert np.array_equal(stages["regions"], guided.morph_labels((32, 96), rng=1, scale=guided.MORPH_BLOB * 32))
         assert stages["regions"][:, 0].max() == 0 and stages["regions"][:, -1].min() == 1  # A's left, B's right
         top = np.float32(255 if dtype == np.uint8 else 1)
@@ -569,7 +587,9 @@ def test_cli_morph_stages_writes_each_steps_picture_stacked_as_the_grid(models, 
     assert r.returncode == 0, r.stderr.decode()
     r = _run(["morph", "a.npz", "b.npz", "-o", "m.png", "--stages", *args], tmp_path)
     assert r.returncode == 0, r.stderr.decode()
-    assert "steps written beside it: m_regions.png, m_layers.png, m_join.png" in r.stderr.decode()
+    assert "steps written beside it: m_regions.png, m_layer1_quilt.png, " in r.stderr.decode()
+    assert ", m_layers.png, m_join.png" in r.stderr.decode()
+    assert load_image(tmp_path / "m_layer2_refine.png").shape == (64, 96, 3)  # stacked as the grid
     out = load_image(tmp_path / "m.png")
     assert np.array_equal(out, load_image(tmp_path / "plain.png"))  # --stages changes nothing
     assert np.array_equal(load_image(tmp_path / "m_join.png"), out)
@@ -583,8 +603,9 @@ def test_cli_morph_stages_writes_each_steps_picture_stacked_as_the_grid(models, 
         save_model(_as_material(m, e), tmp_path / f"m{i}.npz")
     r = _run(["morph", "m0.npz", "m1.npz", "-o", "s.png", "--stages", *args], tmp_path)
     assert r.returncode == 0, r.stderr.decode()
-    assert "steps written beside it, each with its maps: s_regions.png, s_layers.png, s_join.png" in r.stderr.decode()
-    assert sorted(p.name for p in tmp_path.glob("s*.png")) == sorted(
+    assert "steps written beside it, each with its maps: s_regions.png, s_layer1_quilt.png, " in r.stderr.decode()
+    assert ", s_layers.png, s_join.png" in r.stderr.decode()
+    assert sorted(p.name for p in tmp_path.glob("s*.png") if not re.search(r"_layer\d", p.name)) == sorted(
         ["s.png", "s_height.png", "s_regions.png", "s_layers.png", "s_layers_height.png", "s_join.png",
          "s_join_height.png"])
     for m in ("", "_height"):  # the join's maps are those written

@@ -395,6 +395,7 @@ def test_cli_stages_writes_each_steps_picture_the_last_the_output(files):
         steps = ["quilt", "seams", "refine", "patch-refine"]
         said = f"steps written beside it: {', '.join(f'st_{command}_{s}.png' for s in steps)}\n"
         assert said in r.stderr.decode()
+        assert f"written to {out}\n{said}" in r.stderr.decode(), r.stderr.decode()  # the output first (0.62)
         pictures = [np.asarray(Image.open(files / f"st_{command}_{s}.png")) for s in steps]
         result = np.asarray(Image.open(out))
         assert np.array_equal(pictures[-1], result) and not np.array_equal(pictures[0], result)
@@ -602,7 +603,8 @@ def test_cli_keeps_the_alpha_channel_outside_the_hole_and_makes_the_hole_opaque(
         Image.fromarray(pixels, kind).save(files / "alpha.png")
     source = files / "model.npz" if kind == "RGBA" else grey_model
     res = CliRunner().invoke(main, ["inpaint", str(files / "alpha.png"), str(files / "mask.png"), "-o",
-                                    str(files / "alpha_out.png"), "--source", str(source), "--seed", "1", "-q"])
+                                    str(files / "alpha_out.png"), "--source", str(source), "--seed", "1", "-q",
+                                    "--stages"])
     assert res.exit_code == 0 and "Warning" not in res.stderr, res.stderr
     out, out_depth = load_image(files / "alpha_out.png", dtype=None, with_depth=True, keep_alpha=True)
     out = np.round(out * 65535).astype(np.uint16) if depth == 16 else out
@@ -611,6 +613,11 @@ def test_cli_keeps_the_alpha_channel_outside_the_hole_and_makes_the_hole_opaque(
     assert np.array_equal(out[~hole], pixels[~hole])  # every channel, alpha too, bit for bit
     assert (out[hole][:, -1] == (255 if depth == 8 else 65535)).all()  # the filled texture covers the hole
     assert not np.array_equal(out[hole][:, :-1], pixels[hole][:, :-1])
+    # --stages' pictures keep the alpha channel as the output does (0.62; 0.61 wrote them without it)
+    for step in ("quilt", "refine", "patch-refine"):
+        staged = load_image(files / f"alpha_out_{step}.png", dtype=None, keep_alpha=True)
+        staged = np.round(staged * 65535).astype(np.uint16) if depth == 16 else staged
+        assert staged.shape == out.shape and np.array_equal(staged[..., -1], out[..., -1]), step
 
 
 def test_cli_a_jpeg_output_drops_the_alpha_channel_with_a_warning(files, cells):
@@ -621,11 +628,12 @@ def test_cli_a_jpeg_output_drops_the_alpha_channel_with_a_warning(files, cells):
     alpha = np.full((96, 96, 1), 128, np.uint8)
     Image.fromarray(np.concatenate([cells, alpha], axis=2), "RGBA").save(files / "alpha8.png")
     res = CliRunner().invoke(main, ["inpaint", str(files / "alpha8.png"), str(files / "mask.png"), "-o",
-                                    str(files / "alpha_out.jpg"), "--source", str(files / "model.npz"), "-q"])
+                                    str(files / "alpha_out.jpg"), "--source", str(files / "model.npz"), "-q",
+                                    "--stages"])
     assert res.exit_code == 0, res.stderr
     warning = [line for line in res.stderr.splitlines() if line.startswith("Warning:")]
-    assert len(warning) == 1 and "alpha channel dropped (JPEG holds none" in warning[0]
-    assert Image.open(files / "alpha_out.jpg").mode == "RGB"
+    assert len(warning) == 1 and "alpha channel dropped (JPEG holds none" in warning[0]  # once, with --stages too
+    assert Image.open(files / "alpha_out.jpg").mode == "RGB" and Image.open(files / "alpha_out_quilt.jpg").mode == "RGB"
 
 
 @pytest.mark.parametrize("n", [32, 33, 64, 100, 256, 257, 1000])

@@ -238,6 +238,16 @@ def test_cli_stages_with_maps_writes_each_steps_maps_the_last_the_output(tmp_pat
         for m in ("", "_wall_normal", "_h"):  # the same without it
             assert np.array_equal(load_image(plain / f"{without}{m}.png", dtype=None),
                                   load_image(f"{command}{m}.png", dtype=None)), m
+    # IMAGE's alpha channel: in the albedo's steps as in the albedo written (0.62; 0.61 wrote the steps without it)
+    albedo = load_image("wall.png")
+    alpha = (np.arange(albedo.shape[0] * albedo.shape[1]) % 251).reshape(*albedo.shape[:2], 1) / 255.0
+    save_image(np.concatenate([albedo, alpha], axis=2), "walla.png")
+    code, out = run("inpaint", "walla.png", "mask.png", *maps, "-o", "a.png", "--stages")
+    assert code == 0, out
+    written = load_image("a.png", dtype=None, keep_alpha=True)
+    for step in ("quilt", "patch-refine", "maps"):
+        staged = load_image(f"a_{step}.png", dtype=None, keep_alpha=True)
+        assert staged.shape == written.shape and np.array_equal(staged[..., 3], written[..., 3]), step
 
 
 def test_cli_inpaint_with_maps_warns_once_of_the_maps_a_format_writes_with_fewer_bits(tmp_path, in_saved,

@@ -276,9 +276,12 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         pixel is at one of them, the joins too (0.57).
     stages : dict, only with ``return_stages``
         float32 images in [0, 1] (of materials: dicts of maps, as the result): ``"regions"`` (the labels,
-        region ``i`` at ``i / (k - 1)``, (H, W)), ``"layers"`` (each region its own model's synthesis, before the
-        join: the hard edges the join removes), ``"join"`` (the result; uint8: levels / 255; two-level models':
-        at their levels).
+        region ``i`` at ``i / (k - 1)``, (H, W)); each layer's own steps (0.62), ``"layer<i>_<step>"`` for layer
+        ``i`` = 1 ... k (the model of region ``i - 1``; a model given twice is one layer) and each step its
+        model's synthesis returns (``"guide"``, ``"quilt"``, ``"seams"``, ``"refine"``, ``"patch refine"`` or
+        ``"colour"``, ...; not ``"pool"``), in that order, over the box its region reaches, black outside it;
+        ``"layers"`` (each region its own model's synthesis, before the join: the hard edges the join removes),
+        ``"join"`` (the result; uint8: levels / 255; two-level models': at their levels).
     """
     check_progress(progress)
     models = _check_models(models, 1 if guide is not None else 2, materials=True)
@@ -355,8 +358,9 @@ def morph(model_a, model_b, size=(256, 1024), *, rng=None, stations=None,
         At the two models' two levels where both have the same (as :func:`synthesize_guided`); for
         materials a dict ``name -> (H, W, c)`` array, as :func:`synthesize_guided` gives.
     stages : dict, only with ``return_stages``
-        As :func:`synthesize_guided`'s: ``"regions"`` (A's at 0, B's at 1), ``"layers"`` (each region its own
-        model's synthesis, before the join), ``"join"`` (the result).
+        As :func:`synthesize_guided`'s: ``"regions"`` (A's at 0, B's at 1), ``"layer1_<step>"`` (A's steps, 0.62)
+        and ``"layer2_<step>"`` (B's), ``"layers"`` (each region its own model's synthesis, before the join),
+        ``"join"`` (the result).
     """
     check_progress(progress)
     models = _check_models([model_a, model_b], 2, materials=True)  # materials too (0.59)
@@ -509,7 +513,7 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, flips=None,
     # reads is kept (one layer in memory at a time besides the bands).
     band = in_band(weights)
     keep = band_boxes(weights, tile=tile, band=band)
-    image, kept = None, []
+    image, kept, layer_steps = None, [], {}
     dtype_layers = np.float64 if dtype == np.float64 else np.float32
     for i, (model, (rows, cols), near) in enumerate(zip(models, boxes, keep), start=1):
         layer_rng = np.random.default_rng(rng.integers(0, 2**63 - 1))
@@ -521,7 +525,10 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, flips=None,
         # float for an 8-bit image too, rounded once at the end: the joins' means are those of a deeper image
         layer = model.synthesize((rows.stop - rows.start, cols.stop - cols.start), rng=layer_rng,
                                  tile=wraps((rows, cols), labels.shape, tile), progress=staged, dtype=dtype_layers,
-                                 **generation)
+                                 return_stages=return_stages, **generation)
+        if return_stages:  # the layer's own steps (0.62), on the image's canvas (the same draws: only copies kept)
+            layer, steps = layer
+            layer_steps.update(_layer_steps(i, steps, labels.shape, (rows, cols), (flips or {}).get(id(model), ())))
         if materials:  # the maps stacked: the join follows them all and is the same in every map
             for name in (flips or {}).get(id(model), ()):  # in the first's convention (0.59)
                 layer[name] = flip_green(layer[name])
@@ -535,8 +542,8 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, flips=None,
         del layer
     levels = None if materials else _shared_levels([m for m, layer in zip(models, kept) if layer is not None])
     kept = [np.zeros((0, 0) + image.shape[2:], image.dtype) if layer is None else layer for layer in kept]
-    stages = {"regions": (labels / max(k - 1, 1)).astype(np.float32), "layers": image.astype(np.float32)} \
-        if return_stages else None
+    stages = {"regions": (labels / max(k - 1, 1)).astype(np.float32), **layer_steps,
+              "layers": image.astype(np.float32)} if return_stages else None
     report(progress, "join", 0, 1)
     shows = cut_regions(labels, weights, kept, keep, tile=tile, band=band)
     image = join_layers(shows, kept, keep, tile=tile, out=image)
@@ -569,6 +576,27 @@ def _layered(models, labels, weights, *, rng, progress, dtype, tile, flips=None,
     if materials:  # the layers cut into the first material's maps, as the result
         stages["layers"] = {n: stages["layers"][..., part] for n, part in zip(models[0].names_, models[0].map_slices())}
     return out, stages
+
+
+def _layer_steps(i, steps, shape, box, flipped):
+    """Layer ``i``'s steps (its model's ``synthesize(return_stages=True)``'s, over its ``box`` of the image) as
+    ``layer<i>_<step>`` images of the image's ``shape``, black outside the box (so that they lie over the image
+    and its regions), in the model's order; not its patch pool (patches, no picture). A material's: dicts of maps,
+    the normal maps of ``flipped`` in the first material's convention, as its layer is joined."""
+    rows, cols = box
+
+    def placed(step):
+        canvas = np.zeros(shape + step.shape[2:], np.float32)
+        canvas[rows, cols] = step
+        return canvas
+
+    out = {}
+    for name, step in steps.items():
+        if name == "pool":
+            continue
+        out[f"layer{i}_{name}"] = ({m: placed(flip_green(v) if m in flipped else v) for m, v in step.items()}
+                                   if isinstance(step, dict) else placed(step))
+    return out
 
 
 def _shared_levels(models):

@@ -26,7 +26,7 @@ from .._formats import COOC_CHECKPOINT, READ_SUFFIXES, checkpoint_note, is_model
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_builtin",
            "is_model_file", "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask",
            "check_stdout", "warn_lost_depth", "warn_written_with_8", "read_image",
-           "quiet_tifffile", "examples", "STAGES", "MATERIAL_STAGES", "stage_paths",
+           "quiet_tifffile", "examples", "tell_steps", "STAGES", "MATERIAL_STAGES", "stage_paths",
            "material_stage_files"]
 
 
@@ -629,6 +629,16 @@ def tell_seed(seed, drawn, what="the same image"):
         click.echo(f"seed {seed} drawn (no --seed given): --seed {seed} makes {what} again", err=True)
 
 
+def tell_steps(paths, count, maps=False):
+    """The line naming --stages' files (``paths``: the first output's, those written; nothing where none), said
+    after the line naming the output, by every command alike (0.62; 0.61's textures said it first, materials and
+    morph after)."""
+    names = [os.path.basename(str(p)) for p in paths]
+    if names:
+        click.echo(f"steps written beside {'it' if count == 1 else 'each'}{', each with its maps' if maps else ''}: "
+                   f"{', '.join(names)}", err=True)
+
+
 def count_outputs(output: str, count: int) -> list:
     """The files of ``count`` images (``--count``): -o's own for one, else numbered (:func:`numbered`:
     ``out_1.png``, ...); ``-o -`` (stdout) takes one only, else a usage error."""
@@ -777,7 +787,8 @@ def write_materials(material, output, outputs, size, depth, make, inputs, progre
     says what was written. ``material`` names the maps and their depths; ``progress`` (a
     :class:`Progress`) shows each set's write. ``stages`` (0.61): ``make()`` gives ``(maps, steps)``
     (``Material.synthesize(return_stages=True)``'s), each step's maps written as OUT_<step>, OUT_<step>_<suffix>;
-    True: the steps :data:`MATERIAL_STAGES`, or a tuple of others (a painting's)."""
+    True: the steps :data:`MATERIAL_STAGES`, or a tuple of others (a painting's). Returns the first set's step files
+    written (the albedo's; for :func:`tell_steps`), none without ``stages``."""
     from ..imageio import save_images
 
     if output == "-":
@@ -794,10 +805,12 @@ def write_materials(material, output, outputs, size, depth, make, inputs, progre
         check_output(path)
     check_outputs([("-o", path) for plan in plans for _, path, _ in plan] + steps_planned, inputs)
     warn_lost_depth([(name, own, d) for (name, _, d), own in zip(plans[0], material.depths_)], output, depth, "map")
+    first = []  # the first set's step files written (the albedo's)
     for plan, steps_plan in zip(plans, staged):
         maps = make()
         if stages:
             maps, steps = maps
+            first = first or [step_plan[0][1] for step, step_plan in steps_plan.items() if step in steps]
             save_images([(steps[step][name] if isinstance(steps[step], dict) else steps[step], path, d)
                          for step, step_plan in steps_plan.items() if step in steps
                          for name, path, d in (step_plan if isinstance(steps[step], dict) else step_plan[:1])],
@@ -809,6 +822,7 @@ def write_materials(material, output, outputs, size, depth, make, inputs, progre
     more = f" (and {len(plans) - 1} more set{'s' if len(plans) > 2 else ''})" if len(plans) > 1 else ""
     click.echo(f"{len(plans)} material{'s' if len(plans) > 1 else ''} of {size[0]}x{size[1]} written to "
                f"{written}{more}", err=True)
+    return first
 
 
 def examples(*lines: str) -> str:

@@ -10,15 +10,24 @@ import click
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, count_outputs,
-                     draw_seed, read_image, tell_seed, user_errors, warn_written_with_8, write_materials, examples,
-                     stage_paths)
+                     draw_seed, tell_steps, read_image, tell_seed, user_errors, warn_written_with_8, write_materials,
+                     examples, stage_paths, STAGES, MATERIAL_STAGES)
 from ..fit_options import build_model
 from .options import QUIET_OPTION, Size, depth_option
 
 __all__ = ["synth_several", "morph", "GUIDE_HELP", "TRANSITION_HELP", "DEFAULT_TRANSITION", "MAX_TRANSITION"]
 
-#: The steps ``synth --stages`` writes of a painted or remixed image (``synthesize_guided(return_stages=True)``).
+#: The steps ``synth --stages`` writes of a painted or remixed image (``synthesize_guided(return_stages=True)``);
+#: each layer's own between the regions and the layers (0.62): :func:`guided_stages`.
 GUIDED_STAGES = ("regions", "layers", "join")
+
+
+def guided_stages(k):
+    """--stages' names for ``k`` layers (:data:`GUIDED_STAGES` with each layer's steps, ``layer<i>_<step>``, after
+    the regions, as ``synthesize_guided(return_stages=True)`` orders them; a texture's steps and a material's)."""
+    steps = dict.fromkeys(STAGES + MATERIAL_STAGES)
+    return ("regions", *(f"layer{i}_{s}" for i in range(1, k + 1) for s in steps), "layers", "join")
+
 
 #: :data:`tghop.guided.DEFAULT_TRANSITION`, here so that ``tghop --help`` imports no NumPy
 #: (tests/test_guided.py checks that the two agree).
@@ -179,7 +188,8 @@ def _tell_colours(path, guide, labels, sources):
 def synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model, exclude, downscale,
                   progress, generation, options, depth=None, stages=False):
     """``tghop synth`` with several SOURCEs or a --guide (inside the command's user_errors); ``stages``: --stages,
-    OUT_regions, OUT_layers and OUT_join beside each image (0.61; materials': OUT_layers_<map>, ... too)."""
+    OUT_regions, OUT_layers and OUT_join beside each image (0.61; materials': OUT_layers_<map>, ... too). Returns
+    the outputs (None for materials, which say what they wrote), the size and the first output's step files."""
     import numpy as np
 
     from ..guided import guide_labels, synthesize_guided
@@ -196,7 +206,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
         raise TGHopError("a remix needs at least two SOURCEs (or give --guide)")
     size_given = ctx.get_parameter_source("size").name == "COMMANDLINE"
     outputs = count_outputs(output, count)
-    staged = [stage_paths(path, GUIDED_STAGES) for path in outputs] if stages else []
+    staged = [stage_paths(path, guided_stages(len(sources))) for path in outputs] if stages else []
     for path in (outputs if count > 1 else []) + [p for paths in staged for p in paths.values()]:
         check_output(path)
     check_outputs([("-o", path) for path in outputs] + [("--stages", p) for paths in staged for p in paths.values()],
@@ -268,33 +278,31 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
             progress.close()
             return maps
 
-        write_materials(models[0], output, outputs, size, depth, make,
-                        [(f"SOURCE {i}", s) for i, s in enumerate(sources, start=1)] + [("--guide", guide)], progress,
-                        stages=GUIDED_STAGES if stages else False)
-        if stages:
-            click.echo(f"steps written beside {'it' if count == 1 else 'each'}, each with its maps: "
-                       f"{', '.join(os.path.basename(p) for p in stage_paths(outputs[0], GUIDED_STAGES).values())}",
-                       err=True)
-        return None, size
+        steps = write_materials(models[0], output, outputs, size, depth, make,
+                                [(f"SOURCE {i}", s) for i, s in enumerate(sources, start=1)] + [("--guide", guide)],
+                                progress, stages=guided_stages(len(sources)) if stages else False)
+        tell_steps(steps, count, maps=True)
+        return None, size, []
+    first = []  # the steps written beside the first output
     for i, path in enumerate(outputs):
         image = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
                                   dtype=generation_dtype(depth), return_stages=stages, **generation)
         progress.close()
         if stages:
             image, steps = image
+            steps = {name: step for name, step in steps.items() if name in staged[i]}
+            first = first or list(steps)
             for name, step in steps.items():
                 save_image(step, staged[i][name], depth=depth or 8)
         save_image(image, path, depth=depth or 8, progress=progress)
         progress.close()
-    if stages:
-        click.echo(f"steps written beside {'it' if count == 1 else 'each'}: "
-                   f"{', '.join(os.path.basename(p) for p in staged[0].values())}", err=True)
-    return outputs, size
+    return outputs, size, [staged[0][name] for name in first] if stages else []
 
 
 def _same_kind(specs, read, label):
     """Refuse materials mixed with textures (or with exemplar images, which fit texture models), in one
-    line (``label`` "A"/"B": a morph's, two materials since 0.59, "SOURCE": a paint's or remix's)."""
+    line (``label`` "A"/"B": a morph's, two materials since 0.59, "SOURCE": a paint's or remix's): a usage error,
+    exit status 2 (0.62; 0.61 exited 1, as for a file it could not use)."""
     import numpy as np
 
     whole = [hasattr(r, "names_") for r in read]
@@ -392,7 +400,8 @@ def _check_height(size, source):
 @click.option("--stations", type=click.IntRange(min=2, max=256), default=None,
               help="No longer applies (accepted with a warning, and ignored).")
 @click.option("--stages", is_flag=True,
-              help="Also write each step's picture beside OUTPUT: OUTPUT_regions (A's black, B's white), "
+              help="Also write each step's picture beside OUTPUT: OUTPUT_regions (A's black, B's white), A's "
+                   "and B's own steps (0.62: OUTPUT_layer1_quilt, ..., OUTPUT_layer2_quilt, ...), "
                    "OUTPUT_layers (each region its own texture, before the join) and OUTPUT_join (OUTPUT itself); "
                    "of materials each map's too (OUTPUT_layers_<map>, ...); with --grid, each step's strips stacked.")
 @depth_option("8")
@@ -416,7 +425,7 @@ def morph(source_a, source_b, output, size, grid, seed, stations, stages, depth,
                                    "image, so give -o a file name (e.g. -o strip.png) or drop --stages")
         check_output(output, allow_stdout=True, depth=depth)
         check_depth(output, depth or 8)
-        staged = stage_paths(output, GUIDED_STAGES) if stages else {}
+        staged = stage_paths(output, guided_stages(2)) if stages else {}
         for path in staged.values():
             check_output(path)
         check_outputs([("-o", output)] + [("--stages", path) for path in staged.values()],
@@ -433,9 +442,9 @@ def morph(source_a, source_b, output, size, grid, seed, stations, stages, depth,
         if stations is not None:  # (the library's FutureWarning is not among the warnings shown)
             click.echo(f"Warning: --{STATIONS_GONE}", err=True)
         if hasattr(model_a, "names_"):  # two materials (0.59): every map morphed alike, OUT and OUT_<suffix>
-            _morph_materials(model_a, model_b, output, size, grid, seed, depth, progress, [("A", source_a),
-                                                                                           ("B", source_b)], stages)
-            _tell_stages(staged, ", each with its maps")
+            steps = _morph_materials(model_a, model_b, output, size, grid, seed, depth, progress,
+                                     [("A", source_a), ("B", source_b)], stages)
+            tell_steps(steps, 1, maps=True)
             tell_seed(seed, drawn, "the same strip" if grid == 1 else "the same strips")
             return
         rows = []
@@ -445,12 +454,13 @@ def morph(source_a, source_b, output, size, grid, seed, stations, stages, depth,
                                    return_stages=stages))
             progress.close()
         image, steps = _stacked(rows, stages)
+        steps = {name: step for name, step in steps.items() if name in staged}
         for name, step in steps.items():
             save_image(step, staged[name], depth=depth or 8)
         save_image(image, output, depth=depth or 8, progress=progress)
     if output != "-":
         click.echo(f"{grid} strip{'s' if grid > 1 else ''} of {size[0]}x{size[1]} written to {output}", err=True)
-    _tell_stages(staged)
+    tell_steps([staged[name] for name in steps], 1)
     tell_seed(seed, drawn, "the same strip" if grid == 1 else "the same strips")
 
 
@@ -467,14 +477,9 @@ def _stacked(rows, stages):
 
     if not stages:
         return stack(rows), {}
-    return stack([r[0] for r in rows]), {name: stack([r[1][name] for r in rows]) for name in rows[0][1]}
-
-
-def _tell_stages(staged, each=""):
-    """The line naming --stages' files (``staged``: their paths; none without --stages)."""
-    if staged:
-        click.echo(f"steps written beside it{each}: {', '.join(os.path.basename(p) for p in staged.values())}",
-                   err=True)
+    # a step every strip has (a layer's box too small for a coarse guide in one strip has no layer<i>_guide there)
+    return stack([r[0] for r in rows]), {name: stack([r[1][name] for r in rows]) for name in rows[0][1]
+                                         if all(name in r[1] for r in rows)}
 
 
 def _morph_materials(model_a, model_b, output, size, grid, seed, depth, progress, inputs, stages=False):
@@ -494,5 +499,5 @@ def _morph_materials(model_a, model_b, output, size, grid, seed, depth, progress
         maps, steps = _stacked(rows, stages)
         return (maps, steps) if stages else maps
 
-    write_materials(model_a, output, [output], (size[0] * grid, size[1]), depth, make, inputs, progress,
-                    stages=GUIDED_STAGES if stages else False)
+    return write_materials(model_a, output, [output], (size[0] * grid, size[1]), depth, make, inputs, progress,
+                           stages=guided_stages(2) if stages else False)

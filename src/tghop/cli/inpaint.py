@@ -11,7 +11,7 @@ from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, load_mask,
                      map_names, count_outputs, quiet_tifffile, refuse_albedo_as_map, refuse_colour_map_out_of_place,
-                     read_image, draw_seed, tell_seed, user_errors, warn_lost_depth, examples, stage_paths,
+                     read_image, draw_seed, tell_steps, tell_seed, user_errors, warn_lost_depth, examples, stage_paths,
                      material_stage_files, MATERIAL_STAGES)
 from .options import MAX_COUNT, QUIET_OPTION, Size, depth_option, scale_option
 
@@ -45,8 +45,9 @@ def _fill_options(fitted_on: str, tile_help: str):
         click.option("--stages", is_flag=True,
                      help="Also write each step's picture beside OUTPUT, at its depth (0.61): OUTPUT_guide (the coarse "
                           "layout's fill, where the model has one), _quilt, _seams, _refine, _patch-refine (the last "
-                          "step's: the result itself; a two-level exemplar's: then _levels). With --maps each map's "
-                          "too (OUTPUT_quilt_<map>, ...), the last OUTPUT_maps*: the maps written."),
+                          "step's: the result itself; a two-level exemplar's: then _levels), each with IMAGE's alpha "
+                          "channel as OUTPUT has it (0.62). With --maps each map's too (OUTPUT_quilt_<map>, ...), the "
+                          "last OUTPUT_maps*: the maps written."),
         depth_option("IMAGE's, as far as the output's format holds it"),
         QUIET_OPTION,
     ]
@@ -114,11 +115,13 @@ def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, coun
         model, rng = _model(picture, hole, image, source, source_is_model, scale, seed, progress,
                             too_little=f"MASK {mask} leaves too little of IMAGE {image} to fit a model on",
                             fix="paint a smaller hole")
-        _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, outputs, depth, staged=staged)
+        steps = _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, outputs, depth,
+                                staged=staged)
     if output != "-":
         filled = int(hole.sum())
         click.echo(f"{filled:,} pixel{'s' if filled != 1 else ''} filled{_times(count)}, written to "
                    f"{_where(outputs)}", err=True)
+        tell_steps(steps, count)  # after the output, as for materials (0.62)
     tell_seed(seed, drawn, _same(count))
 
 
@@ -169,11 +172,12 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
         model, rng = _model(picture, None, image, source, source_is_model, scale, seed, progress,
                             too_little=f"IMAGE {image} is too small to fit a model on", fix="give a larger IMAGE",
                             grown=size)
-        _fill_and_write(model, canvas, hole, alpha, rng, tile, progress, image, outputs, depth, order="raster",
-                        staged=staged)
+        steps = _fill_and_write(model, canvas, hole, alpha, rng, tile, progress, image, outputs, depth,
+                                order="raster", staged=staged)
     if output != "-":
         click.echo(f"{picture.shape[0]}x{picture.shape[1]} extended to {size[0]}x{size[1]}{_times(count)}, written "
                    f"to {_where(outputs)}", err=True)
+        tell_steps(steps, count)
     tell_seed(seed, drawn, _same(count))
 
 
@@ -346,7 +350,9 @@ def _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, out
     ``outputs``, each fill drawn after the one before from ``rng`` (--count). ``order``: the fill's
     (:func:`tghop.inpaint.inpaint`): "raster" for extend, as :func:`tghop.inpaint.extend` takes (0.60; 0.59's
     ``tghop extend`` of a texture filled from the edge inwards, as a hole). ``staged``: --stages' files of each
-    output (:func:`~tghop.cli.common.stage_paths`), each step's picture written there, without the alpha channel."""
+    output (:func:`~tghop.cli.common.stage_paths`), each step's picture written there with IMAGE's alpha channel as
+    the output has it (0.62; 0.61 wrote them without).
+    Returns the first output's step files written (for :func:`~tghop.cli.common.tell_steps`)."""
     from pathlib import Path
 
     from ..imageio import save_image
@@ -360,12 +366,10 @@ def _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, out
             result, steps = result
             for name, step in steps.items():
                 if name in staged[i]:  # the pictures (not the patch pool)
-                    save_image(step, staged[i][name], depth=depth)
+                    save_image(_step_with_alpha(step, alpha, hole, output), staged[i][name], depth=depth)
         save_image(_with_alpha(result, alpha, hole, image, output), output, depth=depth, progress=progress)
         progress.close()
-    if staged:
-        written = ", ".join(Path(p).name for p in staged[0].values() if Path(p).exists())
-        click.echo(f"steps written beside {'it' if len(outputs) == 1 else 'each'}: {written}", err=True)
+    return [p for p in staged[0].values() if Path(p).exists()] if staged else []
 
 
 def _check_size(image, shape, p, whose, grown=None):
@@ -384,6 +388,20 @@ def _check_size(image, shape, p, whose, grown=None):
                          f"{max(hh, p)}x{max(ww, p)}" + (f", or {smaller}" if smaller else ""))
     raise TGHopError(f"IMAGE {image} is {h}x{w} pixels, smaller than the {p}x{p} patches{whose} that fill the hole; "
                      f"{smaller or f'give an IMAGE of at least {p}x{p}'}")
+
+
+def _step_with_alpha(step, alpha, hole, output):
+    """A --stages picture (float32 in [0, 1]) with IMAGE's alpha channel as the output gets it (0.62: 0.61 dropped it,
+    so a step did not line up with the output over transparent parts); a JPEG output holds none (its warning says
+    so once, for the output)."""
+    import numpy as np
+
+    from ..imageio import output_format
+    from ..inpaint import LEVELS, with_alpha
+
+    if alpha is None or output_format(output) == "JPEG":
+        return step
+    return with_alpha(step, alpha.astype(np.float32) / np.float32(LEVELS.get(alpha.dtype, 1)), hole)
 
 
 def _with_alpha(result, alpha, hole, image, output):
@@ -408,7 +426,8 @@ def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, 
     and its maps filled alike (:func:`tghop.inpaint.inpaint_material`) and written together,
     OUT and OUT_<suffix>.EXT (:func:`tghop.material_files.map_files`), each at its file's depth (or
     ``depth``); once per file of ``outputs`` (--count's numbered files: a set each, one fit). ``stages``
-    (--stages, 0.61): each step's maps too, OUT_<step>.EXT and OUT_<step>_<suffix>.EXT, without alpha."""
+    (--stages, 0.61): each step's maps too, OUT_<step>.EXT and OUT_<step>_<suffix>.EXT, the albedo's with IMAGE's alpha
+    channel as OUT has it (0.62; 0.61: without)."""
     from pathlib import Path
 
     import numpy as np
@@ -494,7 +513,8 @@ def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, 
         progress.close()
         if stages:
             filled, steps = filled
-            save_images([(steps[step][name], out, d) for step, step_plan in staged[k].items() if step in steps
+            save_images([(_step_with_alpha(steps[step][name], alpha, hole, plan[0][1]) if name == "albedo" else
+                          steps[step][name], out, d) for step, step_plan in staged[k].items() if step in steps
                          for name, out, d in step_plan], progress=progress)
         filled["albedo"] = _with_alpha(filled["albedo"], alpha, hole, image, plan[0][1])
         save_images([(filled[name], out, d) for name, out, d in plan], progress=progress)
@@ -505,9 +525,7 @@ def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, 
     click.echo(f"{what} in {len(plans[0])} maps, written to {', '.join(out for _, out, _ in plans[0])}{more}",
                err=True)
     if stages:
-        written = [Path(steps[0][1]).name for steps in staged[0].values() if Path(steps[0][1]).exists()]
-        click.echo(f"steps written beside {'it' if len(plans) == 1 else 'each'}, each with its maps: "
-                   f"{', '.join(written)}", err=True)
+        tell_steps([steps[0][1] for steps in staged[0].values() if Path(steps[0][1]).exists()], len(plans), maps=True)
 
 
 def _refuse_reordered(map_paths, material, source):

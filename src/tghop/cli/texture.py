@@ -16,8 +16,8 @@ from ..fit_options import build_model
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
                      is_builtin, is_model_file, load_exemplar, load_mask, map_names, count_outputs, quiet_tifffile,
                      refuse_albedo_as_map, refuse_colour_map_out_of_place, read_image, summary,
-                     draw_seed, tell_seed, user_errors, warn_written_with_8, write_materials, examples, stage_paths,
-                     MATERIAL_STAGES)
+                     draw_seed, tell_steps, tell_seed, user_errors, warn_written_with_8, write_materials, examples,
+                     stage_paths, MATERIAL_STAGES)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
                       depth_option, generation_options, generation_params, given_options, model_options,
@@ -292,8 +292,10 @@ def clusters(model_file, exemplar, output, stride, quiet):
                    "a two-level exemplar's: then _levels, snapped to them). A material's (0.61): each step's maps "
                    "(OUTPUT_guide, OUTPUT_guide_<map>, where it has a layout, OUTPUT_quilt, OUTPUT_quilt_<map>, ...), "
                    "_colour after _patch-refine, its last _maps (the maps written). Several SOURCEs or "
-                   "--guide (0.61): _regions (the labels as grey levels), _layers (each region its own texture) and "
-                   "_join (the image).")
+                   "--guide (0.61): _regions (the labels as grey levels), each layer's own steps (0.62: "
+                   "_layer1_quilt, ..., _layer2_quilt, ...: layer i is the i-th SOURCE, one given twice one layer; "
+                   "black outside the box it was made over), _layers (each region its own texture) and _join (the "
+                   "image).")
 @QUIET_OPTION
 @click.option("--maps", "maps_given", is_flag=True, hidden=True)  # fit's: said so (click offered --gamma, --paper)
 @click.pass_context
@@ -329,9 +331,9 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
         if len(sources) > 1 or guide is not None:
             from .guided import synth_several
 
-            outputs, size = synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model,
-                                          exclude, downscale, progress, generation_params(options), options, depth,
-                                          stages=stages)
+            outputs, size, steps = synth_several(ctx, sources, output, size, count, seed, guide, transition,
+                                                 save_model, exclude, downscale, progress, generation_params(options),
+                                                 options, depth, stages=stages)
             if outputs is None:  # materials: it said what it wrote
                 tell_seed(seed, drawn, "the same material" if count == 1 else "the same materials")
                 return
@@ -339,8 +341,8 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
         elif given_options(ctx, ["transition"]):
             raise click.UsageError("--transition applies to several SOURCEs or --guide; drop it")
         else:
-            outputs, from_model = _synth_one(ctx, sources[0], output, size, count, seed, save_model, exclude,
-                                             downscale, progress, options, depth, stages)
+            outputs, from_model, steps = _synth_one(ctx, sources[0], output, size, count, seed, save_model,
+                                                    exclude, downscale, progress, options, depth, stages)
             if outputs is None:  # a material: it said what it wrote
                 tell_seed(seed, drawn, "the same material" if count == 1 else "the same materials")
                 return
@@ -349,13 +351,15 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
         click.echo(f"{count} image{'s' if count > 1 else ''} of {size[0]}x{size[1]} written to {where}", err=True)
         if save_model is not None and not from_model:
             click.echo(f"model written to {save_model}", err=True)
+        tell_steps(steps, count)  # after the output, as for materials (0.62)
     tell_seed(seed, drawn, "the same image" if count == 1 else "the same images")
 
 
 def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, downscale, progress, options, depth,
                stages=False):
     """``tghop synth`` from one SOURCE (inside the command's user_errors): the outputs
-    written (None for a material, which says what it wrote) and whether SOURCE was a saved model."""
+    written (None for a material, which says what it wrote), whether SOURCE was a saved model and --stages' files
+    written beside the first."""
     from ..imageio import check_depth, generation_dtype, save_image
     from ..modelfile import load_model, save_model as write_model
     from ..settings import BY_NAME
@@ -400,7 +404,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
                                        f"--patch-levels 0); fit it again, or drop {'them' if several else 'it'}")
             _synth_material(model, output, outputs, size, depth, rng=seed, progress=progress, generation=generation,
                             source=source, stages=stages)
-            return None, True
+            return None, True, []
         check_depth(output, depth or 8, channels=model.exemplar_shape_[2])
         if not depth and (getattr(model, "exemplar_depth_", None) or 8) > 8:  # as from the exemplar (fit_exemplar)
             warn_written_with_8("the exemplar of SOURCE", source, output)
@@ -445,10 +449,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
                     save_image(step, staged[i][name], depth=depth or 8)
         save_image(image, path, depth=depth or 8, progress=progress)
         progress.close()
-    if stages:
-        written = ", ".join(Path(p).name for p in staged[0].values() if Path(p).exists())
-        click.echo(f"steps written beside {'it' if count == 1 else 'each'}: {written}", err=True)
-    return outputs, from_model
+    return outputs, from_model, [p for p in staged[0].values() if Path(p).exists()] if stages else []
 
 
 def _synth_material(material, output, outputs, size, depth, *, rng, progress, generation, source, stages=False):
@@ -466,9 +467,8 @@ def _synth_material(material, output, outputs, size, depth, *, rng, progress, ge
 
     write_materials(material, output, outputs, size, depth, make, [("SOURCE", source)], progress, stages=stages)
     if stages:
-        written = ", ".join(Path(p).name for p in stage_paths(outputs[0], MATERIAL_STAGES).values() if Path(p).exists())
-        click.echo(f"steps written beside {'it' if len(outputs) == 1 else 'each'}, each with its maps: {written}",
-                   err=True)
+        tell_steps([p for p in stage_paths(outputs[0], MATERIAL_STAGES).values() if Path(p).exists()], len(outputs),
+                   maps=True)
 
 
 @click.command(short_help='Describe a saved model: settings, dimensions, parameter count', epilog=examples(
