@@ -634,7 +634,7 @@ def test_load_errors(small_model, tmp_path):
         load_model(tmp_path / "newer.npz")
     broken = {k: v for k, v in arrays.items() if k != "ichm_ii.mixing"}
     _write_npz(tmp_path / "broken.npz", **broken)
-    with pytest.raises(ModelFileError, match="corrupt"):
+    with pytest.raises(ModelFileError, match="edited, damaged or written by another program"):
         load_model(tmp_path / "broken.npz")
     # NaN or infinity anywhere: in the float16 mixing rows (checked on their bits) or a float64 array.
     for name, value in (("ichm_ii.mixing", np.inf), ("ichm_ii.mixing", -np.inf), ("ichm_ii.mixing", np.nan),

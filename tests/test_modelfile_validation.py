@@ -454,6 +454,28 @@ def test_a_file_of_a_newer_tghop_warns_naming_both_versions(saved, tmp_path):
         load("99.0.0", brand_new=1)
 
 
+@pytest.mark.parametrize("version", [-3, 0, 1])
+def test_a_format_version_below_any_this_tghop_wrote_is_an_edited_file(saved, tmp_path, version):
+    # 0.61: "written in model format version -3 (by tghop 0.61.0), but this tghop 0.61.0 reads versions 2 to 11;
+    # refit the model with this version", of a file this very version wrote and someone edited.
+    from tghop import __version__
+
+    path, arrays = saved
+    meta = json.loads(str(arrays["__meta__"]))
+    _write(tmp_path / "v.npz", {**arrays, "__meta__": np.array(json.dumps({**meta, "format_version": version}))})
+    with pytest.raises(ModelFileError) as caught:
+        load_model(tmp_path / "v.npz")
+    assert str(caught.value) == (
+        f"{tmp_path / 'v.npz'}: this model file was edited, damaged or written by another program, so tghop cannot use "
+        f"it; fit the model again from its exemplar: tghop fit EXEMPLAR -o {tmp_path / 'v.npz'} (what is wrong: "
+        f"format_version {version}, which tghop {__version__} does not write)")
+    # a file of an older tghop in a version this one no longer reads is still told to refit
+    _write(tmp_path / "old.npz", {**arrays, "__meta__": np.array(json.dumps(
+        {**meta, "format_version": 1, "tghop_version": "0.1.0"}))})
+    with pytest.raises(ModelFileError, match=r"written in model format version 1 \(by tghop 0\.1\.0\), but this "):
+        load_model(tmp_path / "old.npz")
+
+
 def test_npy_file_and_missing_paths_are_one_line_errors(tmp_path, small_model):
     from tghop import TGHopError
     from tghop.modelfile import info_dict

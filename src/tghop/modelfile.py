@@ -281,6 +281,10 @@ def _read_archive(path, label):
     version = meta.get("format_version")
     if not isinstance(version, int) or isinstance(version, bool):
         raise _unusable(label, meta, f"format_version {version!r} is not an integer")
+    if version < READABLE_VERSIONS[0] and meta.get("tghop_version") == __version__:
+        # this very tghop names a version below any it ever wrote: edited (0.61 said "written in model format version
+        # -3 (by tghop 0.61.0), but this tghop 0.61.0 reads versions 2 to 11; refit the model with this version")
+        raise _unusable(label, meta, f"format_version {version}, which tghop {__version__} does not write")
     if version not in READABLE_VERSIONS:
         newer = version > READABLE_VERSIONS[-1]  # 0.59: said so (0.58 told only to refit)
         raise ModelFileError(
