@@ -326,3 +326,51 @@ def test_ctrl_c_after_the_first_is_ignored_to_the_end(folder, tmp_path):
     assert p.returncode == 130 and err.decode().strip() == "Error: interrupted", (p.returncode, err.decode())
     assert out == b"still here\n"
     assert os.listdir(tmp_path) == []
+
+
+STAGED_WRITES = [
+    ["synth", "model.npz", "--size", "40"],
+    ["synth", "model.npz", "model.npz", "--size", "40"],  # painted: regions, layers, join
+    ["synth", "mat.npz", "--size", "40"],
+    ["synth", "mat.npz", "mat.npz", "--size", "40"],
+    ["morph", "model.npz", "model.npz", "--size", "40x80"],
+    ["morph", "mat.npz", "mat.npz", "--size", "40x80"],
+    ["inpaint", "keep.png", "hole.png", "--source", "model.npz"],
+    ["extend", "keep.png", "--size", "80x88", "--source", "model.npz"],
+    ["inpaint", "keep.png", "hole.png", "height.png", "--maps", "--source", "mat.npz"],
+    ["patches", "model.npz", "-n", "4"],  # its grid, then OUT_stages (0.61): the sheet's write fails
+]
+
+
+@pytest.mark.parametrize("args", STAGED_WRITES, ids=[" ".join(a[:4]) for a in STAGED_WRITES])
+def test_a_failed_write_leaves_no_step_of_stages(folder, tmp_path, monkeypatch, args):
+    # --stages' files and the output are one set: a full disk at the last file written (the output's; patches'
+    # sheet of stages) left every file written before it in 0.61 (OUT_quilt.png ... beside no OUT.png, "nothing
+    # was written" said); 0.62 writes the set as save_images does, all or none.
+    from pathlib import Path
+
+    from conftest import save_material
+
+    import tghop.imageio
+    from tghop import InvalidImageError
+    from tghop.material import example_maps
+
+    save_material(tmp_path / "mat.npz")
+    for name in ("model.npz", "keep.png", "hole.png"):
+        os.symlink(folder / name, tmp_path / name)
+    save_image(example_maps(data.bricks(72, rng=2))["height"], tmp_path / "height.png")
+    real = tghop.imageio.save_image
+
+    last = "out_stages" if args[0] == "patches" else "out"
+
+    def full_disk(image, path, **kwargs):
+        if Path(path).stem == last or Path(path).name.startswith(f".{last}."):  # the file or its temporary one
+            raise InvalidImageError(f"{path}: writing the image failed (No space left on device); nothing was "
+                                    "written")
+        return real(image, path, **kwargs)
+
+    monkeypatch.setattr(tghop.imageio, "save_image", full_disk)
+    before = snapshot(tmp_path)
+    code, _, err, exc = invoke(*args, "-o", "out.png", "--stages", "--seed", "1", "-q", cwd=tmp_path)
+    assert_one_line(code, err, "No space left on device", exception=exc)
+    assert snapshot(tmp_path) == before, sorted(set(os.listdir(tmp_path)) - set(before))

@@ -27,7 +27,7 @@ __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "loa
            "is_model_file", "summary", "check_output", "check_outputs", "check_model_output", "numbered", "load_mask",
            "check_stdout", "warn_lost_depth", "warn_written_with_8", "read_image",
            "quiet_tifffile", "examples", "tell_steps", "STAGES", "MATERIAL_STAGES", "stage_paths",
-           "material_stage_files"]
+           "material_stage_files", "save_with_stages"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -662,6 +662,16 @@ def stage_paths(path, names=STAGES):
     return {name: str(path.with_name(f"{path.stem}_{name.replace(' ', '-')}{path.suffix}")) for name in names}
 
 
+def save_with_stages(image, path, depth, steps, paths, progress=None):
+    """``image`` at ``path`` with its --stages files as one set, every file or none (0.62: 0.61 wrote each step as
+    it came, and a full disk left the steps before it, the error saying nothing was written): ``steps``
+    ``{step: image}``, ``paths`` ``{step: file}`` (a step not in it is not written: the patch pool)."""
+    from ..imageio import save_images
+
+    save_images([(step, paths[name], depth) for name, step in steps.items() if name in paths]
+                + [(image, path, depth)], progress=progress)
+
+
 def numbered(path: str, count: int):
     p = Path(path)
     width = len(str(count))
@@ -807,15 +817,15 @@ def write_materials(material, output, outputs, size, depth, make, inputs, progre
     warn_lost_depth([(name, own, d) for (name, _, d), own in zip(plans[0], material.depths_)], output, depth, "map")
     first = []  # the first set's step files written (the albedo's)
     for plan, steps_plan in zip(plans, staged):
-        maps = make()
+        maps, steps = make() if stages else (make(), {})
         if stages:
-            maps, steps = maps
             first = first or [step_plan[0][1] for step, step_plan in steps_plan.items() if step in steps]
-            save_images([(steps[step][name] if isinstance(steps[step], dict) else steps[step], path, d)
-                         for step, step_plan in steps_plan.items() if step in steps
-                         for name, path, d in (step_plan if isinstance(steps[step], dict) else step_plan[:1])],
-                        progress=progress)  # a step of one image (a painting's regions): at OUT_<step> alone
-        save_images([(maps[name], path, d) for name, path, d in plan], progress=progress)
+        # each step's maps (a step of one image, a painting's regions: at OUT_<step> alone) and the maps: all or
+        # none (0.62; 0.61 wrote the steps first, and kept them where the maps failed)
+        save_images([(steps[step][name] if isinstance(steps[step], dict) else steps[step], path, d)
+                     for step, step_plan in steps_plan.items() if step in steps
+                     for name, path, d in (step_plan if isinstance(steps[step], dict) else step_plan[:1])]
+                    + [(maps[name], path, d) for name, path, d in plan], progress=progress)
         if progress is not None:
             progress.close()
     written = ", ".join(path for _, path, _ in plans[0])

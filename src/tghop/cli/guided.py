@@ -11,7 +11,7 @@ from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, count_outputs,
                      draw_seed, tell_steps, read_image, tell_seed, user_errors, warn_written_with_8, write_materials,
-                     examples, stage_paths, STAGES, MATERIAL_STAGES)
+                     examples, stage_paths, save_with_stages, STAGES, MATERIAL_STAGES)
 from ..fit_options import build_model
 from .options import QUIET_OPTION, Size, depth_option
 
@@ -288,13 +288,13 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
         image = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
                                   dtype=generation_dtype(depth), return_stages=stages, **generation)
         progress.close()
-        if stages:
+        if stages:  # the steps and the result: all or none (0.62)
             image, steps = image
             steps = {name: step for name, step in steps.items() if name in staged[i]}
             first = first or list(steps)
-            for name, step in steps.items():
-                save_image(step, staged[i][name], depth=depth or 8)
-        save_image(image, path, depth=depth or 8, progress=progress)
+            save_with_stages(image, path, depth or 8, steps, staged[i], progress=progress)
+        else:
+            save_image(image, path, depth=depth or 8, progress=progress)
         progress.close()
     return outputs, size, [staged[0][name] for name in first] if stages else []
 
@@ -455,9 +455,10 @@ def morph(source_a, source_b, output, size, grid, seed, stations, stages, depth,
             progress.close()
         image, steps = _stacked(rows, stages)
         steps = {name: step for name, step in steps.items() if name in staged}
-        for name, step in steps.items():
-            save_image(step, staged[name], depth=depth or 8)
-        save_image(image, output, depth=depth or 8, progress=progress)
+        if stages:  # the steps and the strips: all or none (0.62)
+            save_with_stages(image, output, depth or 8, steps, staged, progress=progress)
+        else:
+            save_image(image, output, depth=depth or 8, progress=progress)
     if output != "-":
         click.echo(f"{grid} strip{'s' if grid > 1 else ''} of {size[0]}x{size[1]} written to {output}", err=True)
     tell_steps([staged[name] for name in steps], 1)

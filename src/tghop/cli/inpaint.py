@@ -12,7 +12,7 @@ from .._formats import OUTPUT_HELP
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, load_mask,
                      map_names, count_outputs, quiet_tifffile, refuse_albedo_as_map, refuse_colour_map_out_of_place,
                      read_image, draw_seed, tell_steps, tell_seed, user_errors, warn_lost_depth, examples, stage_paths,
-                     material_stage_files, MATERIAL_STAGES)
+                     material_stage_files, MATERIAL_STAGES, save_with_stages)
 from .options import MAX_COUNT, QUIET_OPTION, Size, depth_option, scale_option
 
 __all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
@@ -362,12 +362,14 @@ def _fill_and_write(model, picture, hole, alpha, rng, tile, progress, image, out
         result = fill(model, picture, hole, rng=rng, tile=tile, order=order, progress=progress,
                       return_stages=bool(staged))
         progress.close()
-        if staged:
+        if staged:  # the pictures (not the patch pool) and the result: all or none (0.62)
             result, steps = result
-            for name, step in steps.items():
-                if name in staged[i]:  # the pictures (not the patch pool)
-                    save_image(_step_with_alpha(step, alpha, hole, output), staged[i][name], depth=depth)
-        save_image(_with_alpha(result, alpha, hole, image, output), output, depth=depth, progress=progress)
+            steps = {name: _step_with_alpha(step, alpha, hole, output) for name, step in steps.items()
+                     if name in staged[i]}  # the pictures (not the patch pool)
+            save_with_stages(_with_alpha(result, alpha, hole, image, output), output, depth, steps, staged[i],
+                             progress=progress)
+        else:
+            save_image(_with_alpha(result, alpha, hole, image, output), output, depth=depth, progress=progress)
         progress.close()
     return [p for p in staged[0].values() if Path(p).exists()] if staged else []
 
@@ -511,13 +513,14 @@ def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, 
         filled = inpaint_material(material, images, hole, rng=rng, tile=tile, progress=progress,
                                   return_stages=stages, **({"order": "raster"} if grow is not None else {}))
         progress.close()
-        if stages:
+        steps = {}
+        if stages:  # each step's maps and the maps: all or none (0.62)
             filled, steps = filled
-            save_images([(_step_with_alpha(steps[step][name], alpha, hole, plan[0][1]) if name == "albedo" else
-                          steps[step][name], out, d) for step, step_plan in staged[k].items() if step in steps
-                         for name, out, d in step_plan], progress=progress)
         filled["albedo"] = _with_alpha(filled["albedo"], alpha, hole, image, plan[0][1])
-        save_images([(filled[name], out, d) for name, out, d in plan], progress=progress)
+        save_images([(_step_with_alpha(steps[step][name], alpha, hole, plan[0][1]) if name == "albedo" else
+                      steps[step][name], out, d) for step, step_plan in (staged[k].items() if stages else ())
+                     if step in steps for name, out, d in step_plan]
+                    + [(filled[name], out, d) for name, out, d in plan], progress=progress)
         progress.close()
     what = (f"{int(hole.sum()):,} pixels filled" if grow is None
             else f"{picture.shape[0]}x{picture.shape[1]} extended to {grow[0][0]}x{grow[0][1]}")

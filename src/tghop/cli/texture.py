@@ -17,7 +17,7 @@ from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_
                      is_builtin, is_model_file, load_exemplar, load_mask, map_names, count_outputs, quiet_tifffile,
                      refuse_albedo_as_map, refuse_colour_map_out_of_place, read_image, summary,
                      draw_seed, tell_steps, tell_seed, user_errors, warn_written_with_8, write_materials, examples,
-                     stage_paths, MATERIAL_STAGES)
+                     stage_paths, MATERIAL_STAGES, save_with_stages)
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
                       depth_option, generation_options, generation_params, given_options, model_options,
@@ -207,10 +207,12 @@ def patches(model_file, n, output, seed, stages, quiet):
             samples, views = model.sample_patches(n, rng=seed, return_stages=True)
         else:
             samples = model.sample_patches(n, rng=seed)
-        save_image(patch_grid(samples), output)
-        if stages:
-            save_image(stage_sheet(views, model.patch_size), stage_path)
+        if stages:  # the grid and its views: both or neither (0.62)
+            save_with_stages(patch_grid(samples), output, 8, {"stages": stage_sheet(views, model.patch_size)},
+                             {"stages": stage_path})
             click.echo(f"stage views written to {stage_path}", err=True)
+        else:
+            save_image(patch_grid(samples), output)
     if output != "-":
         click.echo(f"{n} patch{'es' if n != 1 else ''} written to {output}", err=True)
 
@@ -442,12 +444,11 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
         image = model.synthesize(size, rng=rng, progress=progress, return_stages=stages,
                                  dtype=generation_dtype(depth), **generation)
         progress.close()
-        if stages:
+        if stages:  # the images (not the patch pool, 0.58) and the result: all or none (0.62)
             image, steps = image
-            for name, step in steps.items():
-                if name in staged[i]:  # the images (not the patch pool, 0.58)
-                    save_image(step, staged[i][name], depth=depth or 8)
-        save_image(image, path, depth=depth or 8, progress=progress)
+            save_with_stages(image, path, depth or 8, steps, staged[i], progress=progress)
+        else:
+            save_image(image, path, depth=depth or 8, progress=progress)
         progress.close()
     return outputs, from_model, [p for p in staged[0].values() if Path(p).exists()] if stages else []
 
