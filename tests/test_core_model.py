@@ -1385,3 +1385,21 @@ def test_every_part_of_a_fit_lies_inside_a_reported_stage(bricks96, monkeypatch)
     worked = {e[1] for e in events if e[0] == "work"}
     assert worked == {"patch_origins", "channel_quantiles", "fit_patch_statistics", "_core_of", "quantize",
                       "BandStatistics.fit", "Hop.fit_sums"}, worked
+
+
+def test_mix_refuses_sources_that_are_not_finite_real_numbers(small_model):
+    # Text, objects or complex numbers of the right shape failed in NumPy's matmul (a UFuncTypeError, 0.61), and NaN
+    # gave NaN vectors without a word, where transform and inverse_transform refuse NaN in one line.
+    ichm = small_model.ichm_
+    labels, sources = ichm.sample_sources(40, rng=1)
+    i = int(np.flatnonzero([len(s) for s in sources])[0])  # a cluster with vectors
+    for bad, words in (("x", "values of type <U1"), (None, "values of type object"), (1j, "values of type complex128"),
+                       (np.nan, "NaN or infinite values"), (np.inf, "NaN or infinite values")):
+        changed = list(sources)
+        changed[i] = np.full(sources[i].shape, bad)
+        for call in (lambda: ichm.mix(labels, changed), lambda: ichm.mix_by_cluster(labels, changed)):
+            with pytest.raises(TGHopError, match=re.escape(f"mix: sources[{i}] must hold finite real numbers (as unmix "
+                                                           f"and sample_sources give them), got {words}")):
+                call()
+    whole = [np.round(s).astype(int) for s in sources]  # integers are numbers: mixed as floats
+    np.testing.assert_allclose(ichm.mix(labels, whole), ichm.mix(labels, [s.astype(float) for s in whole]))

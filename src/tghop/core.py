@@ -609,6 +609,11 @@ class ICHM(ICHMStorageMixin, TransformerMixin, BaseEstimator):
             if np.shape(s) != (k, c):  # a wrong width failed in the matrix product, in NumPy's words (0.58)
                 raise TGHopError(f"mix: sources[{i}] must have shape ({k}, {c}): cluster {i}'s {k} vectors in labels "
                                  f"by its {c} components (n_components_[{i}]), got {np.shape(s)}")
+            kind = np.asarray(s).dtype.kind  # text, objects, complex failed in the product, in NumPy's words (0.61)
+            if kind not in "biuf" or (kind == "f" and not np.isfinite(s).all()):
+                got = "NaN or infinite values" if kind == "f" else f"values of type {np.asarray(s).dtype}"
+                raise TGHopError(f"mix: sources[{i}] must hold finite real numbers (as unmix and sample_sources give "
+                                 f"them), got {got}")
         out = np.empty((len(labels), mixing.shape[1]), dtype=mixing.dtype)
         start = 0
         with one_blas_thread():  # the same vectors for a seed on any number of cores (OpenBLAS rounds by its threads)
