@@ -1127,3 +1127,23 @@ def test_a_query_parameter_given_twice_is_refused(client, query):
     """0.59 took the last (the download named after "b") without a word, where a form field given twice is a 400."""
     path = query.format(id="0" * 64, job="0" * 32, cid="0" * 64)
     assert_error(client.get(path), 400, f"the query parameter {query.split('?')[1].split('=')[0]!r} is given twice")
+
+
+def test_fill_k_blank_or_with_leading_zeros_is_that_fill(client, fitted, to_fill):
+    # 0.61 took an empty fill as 1 but refused a blank one ("got ''"), took "08" (and answered X-Tghop-Fill: 08) but
+    # refused "008": the field is a number, whitespace and leading zeros aside, and the header says it plainly.
+    model_id, _, _ = fitted
+    image, mask, _ = to_fill
+    url = f"/api/models/{model_id}/inpaint"
+    ask = {"image": ("generated.png", image, "image/png"), "mask": ("mask.png", mask, "image/png"),
+           "seed": (None, "6")}
+    first = client.post(url, files=ask)
+    second = client.post(url, files={**ask, "fill": (None, "2")})
+    assert first.status_code == second.status_code == 200 and first.content != second.content
+    for value, body in ((" ", first.content), ("\t\n", first.content), ("01", first.content),
+                        ("002", second.content), (" 0002 ", second.content)):
+        r = client.post(url, files={**ask, "fill": (None, value)})
+        assert r.status_code == 200, (value, r.text)
+        assert r.content == body and r.headers["x-tghop-fill"] == ("1" if body == first.content else "2"), value
+    for bad in ("009", "00", "0" * 20 + "1"):
+        assert_error(client.post(url, files={**ask, "fill": (None, bad)}), 422, "fill must be an integer from 1 to 8")

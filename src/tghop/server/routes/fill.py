@@ -184,14 +184,14 @@ async def fill_request(server, request, *, grow: bool):
     else:
         seed = int(seed)
     tile = parse_bool("tile", plain["tile"] or "false")
-    k = (plain["fill"] or "1").strip()
-    if not re.fullmatch(r"[0-9]{1,2}", k) or not 1 <= int(k) <= MAX_FILL:
+    k = (plain["fill"] or "").strip() or "1"  # blank as empty: the first (0.61 refused " ", "got ''")
+    if not re.fullmatch(r"[0-9]{1,19}", k) or not 1 <= int(k) <= MAX_FILL:  # 0.61: "08" taken, "008" refused
         raise RequestError(422, f"fill must be an integer from 1 to {MAX_FILL} (the k-th fill of the seed, as tghop "
                                 f"inpaint --count numbers them), got {k[:40]!r}")
     growth = parse_growth(plain["size"], plain["anchor"]) if grow else None
     png, told = await server.in_executor(request, fill_png, server, model_id, fields, seed, tile, growth, int(k),
                                          models=[model_id])
-    headers = {"X-Tghop-Seed": str(seed), "X-Tghop-Fill": k, "Cache-Control": "no-store"}
+    headers = {"X-Tghop-Seed": str(seed), "X-Tghop-Fill": str(int(k)), "Cache-Control": "no-store"}  # 0.61: "08"
     told = [*models_notes(server, [model_id]), *told]  # reading the model's file, then the picture, mask and maps
     if told:  # what reading them said, as a guide's (one line, printable ASCII)
         headers[WARNING_HEADER] = header_text(told)
