@@ -1916,3 +1916,30 @@ def test_a_hand_edited_ledger_line_repeating_a_key_or_nested_deep_is_skipped_as_
               for line in lines]
     (out / "batch.jsonl").write_text("\n".join(edited + ["[" * 100_000]) + "\n")
     assert {r["name"]: r["skipped"] for r in run(src, out, workers=1)} == {"a": False, "sub__a": True}
+
+
+def test_a_folder_or_file_in_the_way_of_an_exemplars_results_is_named_and_nothing_moved(tmp_path):
+    # 0.61 moved the exemplar's files into place one by one: a folder named as its model (a.npz) failed that move
+    # after its images had moved (a failed exemplar with files of its own, IsADirectoryError's words in the ledger),
+    # and a file named as its folder was "FileExistsError: [Errno 17] File exists". Both are the run's: a rerun does
+    # the exemplar once the way is clear.
+    src = make_folder(tmp_path / "src", bad=False)
+    (src / "sub" / "a.png").unlink()
+    out = tmp_path / "out"
+    (out / "a" / "a.npz").mkdir(parents=True)
+    (failed,) = run(src, out, workers=1)
+    assert failed["status"] == "failed" and failed["cause"] == "run", failed
+    assert failed["error"] == (f"{out / 'a' / 'a.npz'} is a folder, where a's file of that name goes; move or remove "
+                               "that folder, or choose another OUTDIR")
+    assert [p.name for p in (out / "a").iterdir()] == ["a.npz"] and not leftovers(out)
+    (out / "a" / "a.npz").rmdir()
+    (out / "a").rmdir()
+    (out / "a").write_text("notes")
+    (failed,) = run(src, out, workers=1)
+    assert failed["cause"] == "run" and failed["error"] == (
+        f"{out / 'a'} is a file, where the folder of a's results goes; move or remove that file, or choose another "
+        "OUTDIR"), failed
+    (out / "a").unlink()
+    (done,) = run(src, out, workers=1)
+    assert done["status"] == "ok" and sorted(p.name for p in (out / "a").iterdir()) == ["a.npz", "a.png",
+                                                                                           "exemplar.png"]

@@ -304,6 +304,10 @@ def process_exemplar(job: dict) -> dict:
         from .modelfile import save_model
         from .synthesis import prepare_exemplar
 
+        if folder.is_file() or folder.is_symlink() and not folder.is_dir():  # 0.61 said FileExistsError, Errno 17
+            phase = "run"  # not the exemplar's fault: a rerun tries it again once the file is gone
+            raise TGHopError(f"{folder} is a file, where the folder of {name}'s results goes; move or remove that "
+                             "file, or choose another OUTDIR")
         folder.mkdir(parents=True, exist_ok=True)
         remove_temporaries(folder)  # left by a worker killed while writing here
         # Every file is made in a hidden folder of its own, then moved into place together
@@ -357,6 +361,10 @@ def process_exemplar(job: dict) -> dict:
                 save_image(img, stage / file)
                 outputs.append(file)
             record["synth_seconds"] = time.time() - t
+        for file in [*outputs, thumb, model_file]:  # a folder in the way failed a move, the files before it moved
+            if (folder / file).is_dir():  # (0.61): none moved
+                raise TGHopError(f"{folder / file} is a folder, where {name}'s file of that name goes; move or remove "
+                                 "that folder, or choose another OUTDIR")
         with holding_claim(folder, job.get("claim")) as current:  # no other run claims it meanwhile
             if not current:  # a stopped run's task that ran on: its files would replace a later run's (0.62)
                 record["superseded"] = True
