@@ -849,3 +849,17 @@ def test_an_avif_file_and_a_pillow_older_than_11_2_is_one_line_naming_the_upgrad
     said = str(caught.value)
     assert said == (f"{path}: an AVIF image, which Pillow reads from version 11.2 on, and this is Pillow 11.1.0; "
                     "install a Pillow that reads it (pip install --upgrade pillow) or convert the file to PNG"), said
+
+
+def test_save_images_writes_a_long_name_that_its_check_passes(tmp_path):
+    # check_output_path's probe is the name and 16 characters; save_images' temporary file, of the whole name, and
+    # save_image's own beside it were the name and 29: a name of 227 to 239 characters passed the check and failed
+    # at the write (0.61: a material's maps, OUT_height.png, after every map was made; and 0.62's --stages sets).
+    from tghop.imageio import check_output_path, save_images
+
+    img = np.full((4, 4, 3), 0.5)
+    long = tmp_path / ("a" * 231 + ".png")
+    check_output_path(long)
+    save_images([(img, long, 8), (img, tmp_path / "b.png", 16)])
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([long.name, "b.png"])
+    np.testing.assert_allclose(load_image(long), img, atol=1 / 255)

@@ -322,7 +322,9 @@ def save_images(items, *, progress=None) -> None:
     moved = []  # (path, backup or None) in place
     try:
         for k, (image, path, target, depth) in enumerate(checked):
-            tmp = target.with_name(f".{target.stem}.{uuid.uuid4().hex[:8]}.part{path.suffix}")
+            # the name's start only: save_image's own temporary file adds to this name, and a long one (0.61:
+            # 227 to 239 characters) passed check_output_path's probe, then failed after the work (0.62)
+            tmp = target.with_name(f".{target.stem[:32]}.{uuid.uuid4().hex[:8]}.part{path.suffix}")
             try:
                 save_image(image, tmp, depth=depth, progress=_one_of(progress, k, len(checked)))
             except TGHopError as exc:
