@@ -523,12 +523,17 @@ def to_fill(client, fitted):
     return r.content, png_of(hole), hole > 0
 
 
-def test_inpaint_keeps_the_pixels_outside_the_mask_and_fills_the_inside(client, fitted, to_fill):
+def inpaint_ask(fitted, to_fill, seed):
+    """``(url, fields)``: an inpaint of :func:`to_fill`'s picture and mask by :func:`fitted`'s model with ``seed``."""
     model_id, _, _ = fitted
-    image, mask, hole = to_fill
-    url = f"/api/models/{model_id}/inpaint"
-    ask = {"image": ("generated.png", image, "image/png"), "mask": ("mask.png", mask, "image/png"),
-           "seed": (None, "3")}
+    image, mask, _ = to_fill
+    return f"/api/models/{model_id}/inpaint", {"image": ("generated.png", image, "image/png"),
+                                                "mask": ("mask.png", mask, "image/png"), "seed": (None, seed)}
+
+
+def test_inpaint_keeps_the_pixels_outside_the_mask_and_fills_the_inside(client, fitted, to_fill):
+    image, _, hole = to_fill
+    url, ask = inpaint_ask(fitted, to_fill, "3")
     a = client.post(url, files=ask)
     assert a.status_code == 200, a.text
     assert a.headers["content-type"] == "image/png" and a.headers["x-tghop-seed"] == "3"
@@ -687,9 +692,7 @@ def test_fill_k_is_tghop_inpaint_counts_kth_fill(client, fitted, to_fill, live_s
 
     model_id, _, _ = fitted
     image, mask, _ = to_fill
-    url = f"/api/models/{model_id}/inpaint"
-    ask = {"image": ("generated.png", image, "image/png"), "mask": ("mask.png", mask, "image/png"),
-           "seed": (None, "5")}
+    url, ask = inpaint_ask(fitted, to_fill, "5")
     fills, states, went_on = [], live_server.app.state.server.fill_states, []
     states.after = lambda key, k, after=states.after: went_on.append(after(key, k)) or went_on[-1]
     try:
@@ -1132,11 +1135,7 @@ def test_a_query_parameter_given_twice_is_refused(client, query):
 def test_fill_k_blank_or_with_leading_zeros_is_that_fill(client, fitted, to_fill):
     # 0.61 took an empty fill as 1 but refused a blank one ("got ''"), took "08" (and answered X-Tghop-Fill: 08) but
     # refused "008": the field is a number, whitespace and leading zeros aside, and the header says it plainly.
-    model_id, _, _ = fitted
-    image, mask, _ = to_fill
-    url = f"/api/models/{model_id}/inpaint"
-    ask = {"image": ("generated.png", image, "image/png"), "mask": ("mask.png", mask, "image/png"),
-           "seed": (None, "6")}
+    url, ask = inpaint_ask(fitted, to_fill, "6")
     first = client.post(url, files=ask)
     second = client.post(url, files={**ask, "fill": (None, "2")})
     assert first.status_code == second.status_code == 200 and first.content != second.content
