@@ -217,27 +217,35 @@ def command(draw):
     return blob, name, args
 
 
-def check(blob, name, args):
-    """Run one command in a fresh folder and assert the property."""
+def invoke_in(folder, args):
+    """The command line run in-process (click's CliRunner) in ``folder``: its result, once the property's first
+    part holds (no exception but SystemExit, no traceback)."""
     from click.testing import CliRunner
-    from PIL import Image
 
     from tghop.cli import main
+
+    old = os.getcwd()
+    os.chdir(folder)
+    try:
+        result = CliRunner().invoke(main, args, catch_exceptions=True)
+    finally:
+        os.chdir(old)
+    assert result.exception is None or isinstance(result.exception, SystemExit), (args, repr(result.exception))
+    assert "Traceback" not in result.stderr, (args, result.stderr)
+    return result
+
+
+def check(blob, name, args):
+    """Run one command in a fresh folder and assert the property."""
+    from PIL import Image
 
     with tempfile.TemporaryDirectory() as folder:
         path = os.path.join(folder, name)
         with open(path, "wb") as fh:
             fh.write(blob)
-        old = os.getcwd()
-        os.chdir(folder)
-        try:
-            result = CliRunner().invoke(main, args, catch_exceptions=True)
-        finally:
-            os.chdir(old)
+        result = invoke_in(folder, args)
         err = result.stderr
         left = sorted(set(os.listdir(folder)) - {name})
-        assert result.exception is None or isinstance(result.exception, SystemExit), (args, repr(result.exception))
-        assert "Traceback" not in err, (args, err)
         if result.exit_code == 0:
             for f in left:
                 assert not f.startswith("."), (args, left)  # no temporary file
@@ -265,3 +273,84 @@ def test_cli_fuzz(case):
 @given(mutated_arrays())
 def test_model_array_fuzz(blob):
     check_model(blob)
+
+
+#: Outputs for :func:`stages_command`: odd names, formats tghop does not write, stdout, a folder, a missing folder.
+STAGE_OUTPUTS = ["out.png", "out.jpg", "out.tif", "o u.png", "ü ñ.tif", "-", "out.webp", "out.exr", "sub/out.png",
+                 "dir", "dir/", "out", ".png", "OUT.PNG", "a..png", "in.png", "out_quilt.png"]
+#: Folders made before the command, named as a file it may write (a step's, a map's, a numbered one).
+STAGE_OBSTACLES = ["dir", "out_quilt.png", "out_seams.tif", "out_join.png", "out_maps_height.png", "out_2.png",
+                   "out_1_refine.png", "out_height.jpg", "out_regions.png", "out_stages.png"]
+
+
+@st.composite
+def stages_command(draw):
+    """A command with ``--stages`` (0.61's additions) and odd outputs, depths, counts and folders in the way:
+    ``(args, obstacles)``, run by :func:`check_stages` in a folder holding ``tex.npz``, ``mat.npz``, ``in.png``
+    (64x64), ``hole.png`` and ``height.png``."""
+    verb = draw(st.sampled_from(["synth", "synth mat", "paint", "paint mat", "morph", "morph mat", "inpaint",
+                                 "inpaint maps", "extend", "extend maps", "patches"]))
+    model = "mat.npz" if verb.endswith(("mat", "maps")) else "tex.npz"
+    args = {"synth": ["synth", model, "--size", "40"], "paint": ["synth", model, model, "--size", "40"],
+            "morph": ["morph", model, model, "--size", "40x80"],
+            "inpaint": ["inpaint", "in.png", "hole.png"] + (["height.png", "--maps"] if "maps" in verb else []),
+            "extend": ["extend", "in.png"] + (["height.png", "--maps"] if "maps" in verb else []) + ["--size", "72x80"],
+            "patches": ["patches", model, "-n", "4"]}[verb.split()[0]]
+    if verb.startswith(("inpaint", "extend")):
+        args += ["--source", model]
+    args += ["-o", draw(st.sampled_from(STAGE_OUTPUTS)), "--stages", "-q"]
+    if verb != "patches":
+        args += ["--seed", "1"]
+        depth = draw(st.sampled_from([None, "8", "16", "32"]))
+        args += [] if depth is None else ["--depth", depth]
+        count = draw(st.sampled_from([None, "1", "2"]))
+        args += [] if count is None or verb.startswith("morph") else ["--count", count]
+    return args, draw(st.lists(st.sampled_from(STAGE_OBSTACLES), max_size=2, unique=True))
+
+
+@lru_cache(maxsize=None)
+def stage_inputs():
+    """The bytes of :func:`stages_command`'s input files, made once."""
+    from conftest import png, save_material, save_texture
+
+    from tghop import data
+    from tghop.material import example_maps
+
+    with tempfile.TemporaryDirectory() as folder:
+        save_texture(os.path.join(folder, "tex.npz"))
+        save_material(os.path.join(folder, "mat.npz"))
+        files = {name: open(os.path.join(folder, name), "rb").read() for name in ("tex.npz", "mat.npz")}
+    picture = data.bricks(64, rng=2)
+    hole = np.zeros((64, 64))
+    hole[20:40, 24:44] = 1
+    as_png = lambda a: png(np.round(np.asarray(a) * 255).astype(np.uint8))  # noqa: E731
+    return {**files, "in.png": as_png(picture), "hole.png": as_png(hole),
+            "height.png": as_png(example_maps(picture)["height"])}
+
+
+def check_stages(args, obstacles):
+    """:func:`check`'s property for a command of :func:`stages_command`: exit 0 with every file whole and no
+    temporary one, or one ``Error:`` line, no traceback and the folder as it was."""
+    from PIL import Image
+
+    with tempfile.TemporaryDirectory() as folder:
+        for name, content in stage_inputs().items():
+            with open(os.path.join(folder, name), "wb") as fh:
+                fh.write(content)
+        for name in obstacles:
+            os.makedirs(os.path.join(folder, name), exist_ok=True)
+        before = {p: os.path.getsize(os.path.join(folder, p)) for p in os.listdir(folder)}
+        result = invoke_in(folder, args)
+        err = result.stderr
+        left = {p: os.path.getsize(os.path.join(folder, p)) for p in os.listdir(folder)}
+        if result.exit_code == 0:
+            new = sorted(set(left) - set(before))
+            assert new and not any(f.startswith(".") for f in new), (args, new)
+            for f in new:
+                if f.endswith((".png", ".jpg", ".PNG")):
+                    with Image.open(os.path.join(folder, f)) as im:
+                        im.load()
+        else:
+            errors = [line for line in err.splitlines() if line.startswith("Error: ")]
+            assert len(errors) == 1, (args, err)
+            assert left == before, (args, sorted(set(left) ^ set(before)), err)
