@@ -583,3 +583,39 @@ def test_fill_with_a_count_makes_fills_to_pick_from(page):
     assert captions[0] == "inpainted 64x64, seed 4 (bricks)"
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
+
+
+def test_an_error_partway_through_a_strip_of_fills_shows_the_fills_that_came(page):
+    # A server error at fill 2 of 3 kept fill 1 in the strip but showed it nowhere else, the error said alone (0.61):
+    # now fill 1 is shown as Stop shows it, and the error and what came are said in one line.
+    import json
+
+    bricks_result(page, 8, (64, 64))
+    choose_inpaint(page)
+    stroke_across(page)
+    page.fill("#inpaint-seed", "5")
+    page.fill("#inpaint-count", "3")
+    asked = []
+
+    def second_fails(route):
+        asked.append(route.request.url)
+        if len(asked) == 2:
+            route.fulfill(status=500, content_type="application/json", body=json.dumps({"error": "the server broke."}))
+        else:
+            route.continue_()
+
+    page.route("**/api/models/*/inpaint", second_fails)
+    try:
+        page.click("#fill")
+        page.wait_for_function("document.getElementById('fill').textContent === 'Fill'", timeout=120_000)
+    finally:
+        page.unroute("**/api/models/*/inpaint", second_fails)
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'inpainted: 64x64, seed 5, "
+                           "fill 1'", timeout=10_000)
+    assert page.text_content("#inpaint-message") == (
+        "fill 2 of 3 failed: the server broke; fill 1 is under the picture, fill 1 shown (click one to pick it); Undo "
+        "goes back to the picture before")
+    assert page.eval_on_selector("#inpaint-message", "e => e.classList.contains('error')") and len(asked) == 2
+    assert page.eval_on_selector_all("#strip img", "l => l.map((i) => i.classList.contains('chosen'))") == [True]
+    chromium.choose_mode(page, "view")
+    assert not [e for e in page.errors if "status of 500" not in e], page.errors

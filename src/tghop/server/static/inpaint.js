@@ -404,13 +404,17 @@ async function fillStrip(mask, count, size) {
       }
     }
   } catch (e) {
+    const came = `${k === 2 ? "fill 1 is" : `fills 1 ${k === 3 ? "and" : "to"} ${k - 1} are`} under the picture, ` +
+      "fill 1 shown (click one to pick it); Undo goes back to the picture before";
     if (!run.dropped && e.name === "AbortError" && shown) {  // stopped by its button: the fills that came kept, fill 1
       shown.click();  // shown as a finished strip's is (0.60 showed none of them, "stopped" said alone)
-      const came = k === 2 ? "fill 1 is" : `fills 1 ${k === 3 ? "and" : "to"} ${k - 1} are`;
-      return [null, withWarning(`stopped at fill ${k} of ${count}: ${came} under the picture, fill 1 shown (click ` +
-                                "one to pick it); Undo goes back to the picture before", warned)];
+      return [null, withWarning(`stopped at fill ${k} of ${count}: ${came}`, warned)];
     }
-    if (!run.dropped) throw e;  // stopped before any came, or an error: said as any Fill's
+    if (!run.dropped && shown) {  // an error after some came: those kept, fill 1 shown, as Stop does, and the error
+      shown.click();  // said in the same line (0.61 kept them in the strip but showed none, the error alone)
+      throw new Error(`fill ${k} of ${count} failed: ${e.message.replace(/\.$/, "")}; ${came}`);
+    }
+    if (!run.dropped) throw e;  // stopped before any came, or an error before any: said as any Fill's
     return [null, `the fills stopped at fill ${k} of ${count}: another mode or model was chosen, and their strip went`];
   } finally {
     run.running = false;
