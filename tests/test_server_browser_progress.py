@@ -324,6 +324,8 @@ def halved(page, pattern, default=None):
 #: The status said with a painted result (0.61: its thumbnail beside the canvas), and the server's warning of the guide
 #: (or label map) scaled that follows a result's status.
 PAINTED = "done (seed 2): the result is below, its thumbnail beside the canvas (click it to go there)"
+#: Co-occurrence's (0.62: its thumbnail beside the edit's canvas).
+COOC_DONE = "done (seed {seed}): the {what} is below, its thumbnail {where} the edit's canvas (click it to go there)"
 SCALED = (". Warning: the {what} was scaled from {h}x{w} to {hh}x{ww}, the output's size (nearest neighbour: its "
           "regions kept as painted)")
 
@@ -435,8 +437,8 @@ def test_a_label_map_the_server_scaled_is_said_with_the_result(page, tiny_cooc_c
         said = page.wait_for_function("document.getElementById('cooc-message').textContent.startsWith('done')"
                                       " && document.getElementById('cooc-message').textContent",
                                       timeout=120_000).json_value()
-    assert said == "done (seed 2): the result is below" + SCALED.format(what="label map", h=40, w=64, hh=20,
-                                                                        ww=32), said
+    scaled = SCALED.format(what="label map", h=40, w=64, hh=20, ww=32)
+    assert said == COOC_DONE.format(seed=2, what="result", where="beside") + scaled, said
     page.wait_for_function("document.getElementById('result-caption').textContent === 'cooc-edit: 20x32, seed 2'")
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
@@ -498,3 +500,41 @@ def test_a_kept_models_read_warnings_are_said_when_it_is_used(page, live_server)
             again.close()
     finally:
         later.stop()
+
+
+def test_cooc_says_where_its_strip_and_result_are(page, tiny_cooc_checkpoint):
+    # 0.61 said "the strip is below" and "the result is below" alone: at 1024x700 they came under the edit's canvas,
+    # out of sight, at 400x800 far below the fold. Now a thumbnail beside the canvas (under it in a narrow window, and
+    # scrolled to) says where, a click away from the result.
+    chromium.choose_mode(page, "cooc")
+    page.evaluate("() => { document.getElementById('cooc-exemplar').dataset.ready = ''; }")  # loaded by a test before
+    page.set_input_files("#cooc-file", str(tiny_cooc_checkpoint))
+    page.wait_for_function("document.getElementById('cooc-exemplar').dataset.ready === '1'", timeout=60_000)
+    for x, y in ((16, 16), (50, 50)):  # crops 1 and 2
+        page.evaluate("([x, y]) => { const c = document.getElementById('cooc-exemplar'), r = c.getBoundingClientRect();"
+                      " onCoocClick({ clientX: r.left + x * r.width / c.width, clientY: r.top + y * r.height / c.height"
+                      " }); }", [x, y])
+    for field, value in (("cooc-height", "32"), ("cooc-width", "48"), ("cooc-length", "4"), ("cooc-morph-seed", "1"),
+                         ("cooc-edit-seed", "1")):
+        page.fill(f"#{field}", value)
+    try:
+        for width, height, where in ((1024, 700, "beside"), (1600, 900, "beside"), (400, 800, "under")):
+            page.set_viewport_size({"width": width, "height": height})
+            for button, what in (("#cooc-morph-go", "strip"), ("#cooc-edit-go", "result")):
+                page.evaluate("() => { document.getElementById('cooc-message').textContent = ''; }")
+                page.click(button)
+                said = page.wait_for_function("document.getElementById('cooc-message').textContent.startsWith('done')"
+                                              " && document.getElementById('cooc-message').textContent",
+                                              timeout=60_000).json_value()
+                assert said == COOC_DONE.format(seed=1, what=what, where=where), (width, said)
+                page.wait_for_function(IN_VIEW_JS, arg="cooc-result-img", timeout=15_000)  # once drawn
+                thumb, canvas = (page.locator(s).bounding_box() for s in ("#cooc-result-img", "#cooc-guide"))
+                beside = thumb["x"] > canvas["x"] + canvas["width"] and thumb["y"] < canvas["y"] + canvas["height"]
+                assert beside == (where == "beside"), (width, thumb, canvas)
+        assert page.eval_on_selector("#cooc-result-img", "i => i.naturalWidth") == 48
+        page.click("#cooc-result-go")
+        page.wait_for_function(IN_VIEW_JS, arg="result", timeout=5_000)
+    finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors

@@ -140,6 +140,7 @@ async function init() {
   }
   $("paint-go").addEventListener("click", () => onPaintGenerate(false));
   $("paint-result-go").addEventListener("click", goToPainted);
+  $("cooc-result-go").addEventListener("click", goToPainted);
   $("remix-go").addEventListener("click", () => onPaintGenerate(true));
   $("morph-go").addEventListener("click", onMorph);
   for (const id of ["morph-a", "morph-b"]) $(id).addEventListener("change", morphPicked);

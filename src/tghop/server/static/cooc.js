@@ -187,8 +187,18 @@ function onCoocMorph() {
                                             (headers) => postImage(`/api/cooc/${cooc.id}/morph`, body, headers));
     showResult(URL.createObjectURL(blob), seed, blob, "cooc-morph", undefined,
                { models: [cooc.stem], size: [cooc.info.crop_size, body.length * cooc.info.s], tile: false });
-    sayCooc(`done (seed ${seed}): the strip is below`);
+    await coocDone(blob, `done (seed ${seed}): the strip is below`);
   }, sayCooc);
+}
+
+// A morph's or an edit's result shown as a thumbnail beside the edit's canvas, as Paint's is (0.62: 0.61 said "the
+// strip is below" or "the result is below" alone, the result under the canvas out of sight at 1024x700 and far below
+// the fold at 400x800), said where it is, and scrolled into view where it is out of sight (under the canvas in a narrow
+// window).
+async function coocDone(blob, said, warning) {
+  showThumb("cooc-result", blob);
+  sayCooc(withWarning(`${said}, ${thumbSaid("cooc-result", $("cooc-guide-box"), "the edit's canvas")}`, warning));
+  await thumbInView("cooc-result");
 }
 
 // The edit's boost [a, b, factor], or null for a factor of 1 (the server checks the values).
@@ -220,7 +230,7 @@ function onCoocEdit() {
       "cooc-progress", (headers) => postImage(`/api/cooc/${cooc.id}/edit`, body, headers));
     showResult(URL.createObjectURL(blob), seed, blob, "cooc-edit", undefined,
                { models: [cooc.stem], size: body.size, tile: false });
-    sayCooc(withWarning(`done (seed ${seed}): the result is below`, warning));
+    await coocDone(blob, `done (seed ${seed}): the result is below`, warning);
   }, sayCooc);
 }
 

@@ -244,10 +244,9 @@ function onPaintGenerate(remix) {
       of: picked.map((m) => m.stem).join(" + ") };
     showResult(URL.createObjectURL(blob), seed, blob, remix ? "remix" : "painted", maps, name);
     showPainted(blob);
-    const place = placeBy($("paint-result"), $("guide-box"));
-    const thumb = `its thumbnail ${place ? `${place} the canvas ` : ""}(click it to go there)`;
-    sayPaint(withWarning(`done (seed ${seed}): the result is below, ${thumb}`, warning));
-    await reveal($("paint-result-img"));  // under the canvas in a narrow window
+    sayPaint(withWarning(`done (seed ${seed}): the result is below, ${thumbSaid("paint-result", $("guide-box"))}`,
+                         warning));
+    await thumbInView("paint-result");  // under the canvas in a narrow window
   }, (text, isError) => sayPaint(pickedNamed(text, picked), isError));
 }
 
@@ -261,24 +260,48 @@ function pickedNamed(text, picked) {
 }
 
 // Paint's and Remix's last result as a thumbnail beside the canvas (0.61: it came below the canvas only, out of sight
-// at 1024x700, "the result is below"); a click on it scrolls to the result. Shown while that result is the one shown.
-const painted = { blob: null, url: null };
+// at 1024x700, "the result is below"), and (0.62) Co-occurrence's beside its edit's canvas; a click on it scrolls to
+// the result. Each shown while that result is the one shown. `thumbs`: each figure's id to its result's blob and URL.
+const thumbs = { "paint-result": { blob: null, url: null }, "cooc-result": { blob: null, url: null } };
 
-function showPainted(blob) {
-  if (painted.url) URL.revokeObjectURL(painted.url);
-  painted.blob = blob;
-  painted.url = URL.createObjectURL(blob);
-  $("paint-result-img").src = painted.url;
+function showThumb(id, blob) {
+  const thumb = thumbs[id];
+  if (thumb.url) URL.revokeObjectURL(thumb.url);
+  thumb.blob = blob;
+  thumb.url = URL.createObjectURL(blob);
+  $(`${id}-img`).src = thumb.url;
   followResult();
 }
 
-// Called whenever the result shown changes (showPicture): the thumbnail goes with the result it is of.
-function followResult() {
-  $("paint-result").hidden = !painted.blob || !state.lastShown || state.lastShown.blob !== painted.blob;
+function showPainted(blob) {
+  showThumb("paint-result", blob);
 }
 
+// Called whenever the result shown changes (showPicture): each thumbnail goes with the result it is of.
+function followResult() {
+  for (const [id, thumb] of Object.entries(thumbs)) {
+    $(id).hidden = !thumb.blob || !state.lastShown || state.lastShown.blob !== thumb.blob;
+  }
+}
+
+// A thumbnail just shown, with its caption, scrolled into view where it is not wholly in view once drawn (under its
+// canvas in a narrow window; 0.61 scrolled only where it was wholly out of sight, and at 400x800 left it cut at the
+// window's edge).
+async function thumbInView(id) {
+  try { await $(`${id}-img`).decode(); } catch (e) { return; }  // replaced meanwhile, or not drawn
+  if (!$(id).hidden) $(id).scrollIntoView({ block: "nearest" });
+}
+
+// A thumbnail's click: the result itself scrolled into view.
 function goToPainted() {
   $("result").scrollIntoView({ block: "nearest" });
+}
+
+// What a mode's "done" line says of its result shown as a thumbnail `id` beside `canvas`: "its thumbnail beside the
+// canvas (click it to go there)", or under it (a narrow window).
+function thumbSaid(id, canvas, name = "the canvas") {
+  const place = placeBy($(id), canvas);
+  return `its thumbnail ${place ? `${place} ${name} ` : ""}(click it to go there)`;
 }
 
 // A morph goes between two texture models, or two materials with the same maps (0.60, as tghop morph takes them: every
