@@ -1047,3 +1047,56 @@ def test_a_morph_below_the_fold_of_a_narrow_window_is_scrolled_into_view(page):
     finally:
         page.set_viewport_size({"width": 1200, "height": 1400})
     assert not page.errors, page.errors
+
+
+def test_a_modes_long_help_gives_way_to_its_tools_in_a_narrow_window(page):
+    # At 400x800 a mode's help took 6 to 9 lines above its tools (0.61): Paint's canvas began below the fold and
+    # Morph's button at its edge. Now its first two lines, the rest a click away ("more"); whole in a wider window.
+    fit(page, "bricks")
+    page.fill("#height", "128")
+    page.fill("#width", "128")
+    high = "(s) => document.querySelector(s).getBoundingClientRect().height"
+    try:
+        page.set_viewport_size({"width": 400, "height": 800})
+        for mode, tools in (("inpaint", "#fill"), ("paint", "#guide"), ("morph", "#morph-go"), ("cooc", "#cooc-file")):
+            page.evaluate("document.getElementById('modes-row').scrollIntoView({ block: 'start' })")
+            chromium.choose_mode(page, mode)
+            help, more = f"#{mode}-help", f"#{mode}-help + button.more-help"
+            assert page.evaluate(high, help) < 50 and page.is_visible(more), mode  # two lines
+            box = page.locator(tools).bounding_box() if tools != "#cooc-file" else page.locator(
+                "label:has(#cooc-file)").bounding_box()
+            assert box["y"] >= 0 and box["y"] + box["height"] <= 800, (mode, box)
+            page.click(more)
+            assert page.evaluate(high, help) > 100 and page.text_content(more) == "less", mode  # whole
+            assert page.get_attribute(more, "aria-expanded") == "true"
+            page.click(more)
+            assert page.evaluate(high, help) < 50 and page.text_content(more) == "more", mode
+        page.set_viewport_size({"width": 1024, "height": 700})
+        for mode in ("inpaint", "paint", "morph", "cooc"):
+            chromium.choose_mode(page, mode)
+            assert page.eval_on_selector(f"#{mode}-help", "p => p.scrollHeight <= p.clientHeight + 1"), mode  # whole
+            assert page.is_hidden(f"#{mode}-help + button.more-help"), mode
+        chromium.choose_mode(page, "view")
+    finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
+    assert not page.errors, page.errors
+
+
+def test_paints_hint_for_a_second_model_leaves_its_canvas_whole_in_the_window(page):
+    # With one model Paint said "fit or load a second model above ..." after sizing its canvas for the window: in a
+    # narrow window its second line pushed the canvas's foot out of the window (0.61).
+    chromium.load_fresh(page, FAST_FIT)
+    fit(page, "bricks")
+    page.fill("#height", "128")
+    page.fill("#width", "128")
+    try:
+        page.set_viewport_size({"width": 400, "height": 800})
+        page.evaluate("document.getElementById('modes-row').scrollIntoView({ block: 'start' })")
+        chromium.choose_mode(page, "paint")
+        assert page.text_content("#paint-message") == "fit or load a second model above to paint with two"
+        box = page.locator("#guide").bounding_box()
+        assert box["y"] >= 0 and box["y"] + box["height"] <= 800 and box["height"] >= 128, box
+        chromium.choose_mode(page, "view")
+    finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
+    assert not page.errors, page.errors

@@ -29,10 +29,12 @@ function setMode(mode) {
   if (mode === "cooc") coocShown();
   if (inpaint) { inpaintHint(); showEditor(); }
   if (mode === "paint") {
+    // Said first: the canvas is sized for the room under the message (0.62; 0.61 said the hint after, and a line of it
+    // pushed the canvas's foot out of the window)
+    if (state.models.length < 2) sayPaint(PAINT_HINT); else paintPicked();
     resizeGuide();
     sizeGuide();  // sized for the window now that it is shown, and brought into view
     intoView($("guide-box"));
-    if (state.models.length < 2) sayPaint(PAINT_HINT); else paintPicked();
   }
   if (mode === "morph" && state.models.length < 2) sayMorph(MORPH_HINT);
   else if (mode === "morph") morphPicked();
@@ -79,6 +81,26 @@ function wireBuiltinMenu(select) {
   });
 }
 
+// Each mode's long help (p.help.long) cut to its first lines in a narrow window (style.css), and a "more" button after
+// it that shows it whole (and "less" again); the button is shown in a narrow window only.
+function wireLongHelp() {
+  for (const help of document.querySelectorAll("p.help.long")) {
+    const more = document.createElement("button");
+    help.id = help.id || `${help.parentElement.id}-help`;
+    more.type = "button";
+    more.className = "more-help secondary";
+    more.textContent = "more";
+    more.setAttribute("aria-controls", help.id);
+    more.setAttribute("aria-expanded", "false");
+    more.addEventListener("click", () => {
+      const open = help.classList.toggle("open");
+      more.textContent = open ? "less" : "more";
+      more.setAttribute("aria-expanded", String(open));
+    });
+    help.after(more);
+  }
+}
+
 // The keys that move a closed select's choice: arrows, Home, End, Page Up and Down, a letter or digit (type-ahead).
 const BROWSE_KEY = /^(Arrow(Up|Down|Left|Right)|Home|End|Page(Up|Down)|\S)$/u;
 
@@ -98,6 +120,7 @@ async function init() {
     say("the server's API did not answer", true);
   }
   wireBuiltinMenu(select);
+  wireLongHelp();
   // Each chooser emptied once read: the same file chosen again (after a refusal, say) is a change
   $("file").addEventListener("change", (e) => { fitFile(e.target.files[0]); e.target.value = ""; });
   $("model-file").addEventListener("change", (e) => { uploadModel(e.target.files[0]); e.target.value = ""; });
