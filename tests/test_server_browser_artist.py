@@ -619,3 +619,19 @@ def test_an_error_partway_through_a_strip_of_fills_shows_the_fills_that_came(pag
     assert page.eval_on_selector_all("#strip img", "l => l.map((i) => i.classList.contains('chosen'))") == [True]
     chromium.choose_mode(page, "view")
     assert not [e for e in page.errors if "status of 500" not in e], page.errors
+
+
+def test_a_checkpoint_loaded_in_a_narrow_window_shows_where_to_place_the_crops(page, tiny_cooc_checkpoint):
+    # At 400x800 a checkpoint loaded brought the edit's canvas into view, the crops, the exemplar and the message
+    # "click on the exemplar to place crop 1" above it, out of sight (0.61): placing crops comes first.
+    chromium.load_empty(page)
+    with window(page, 400, 800):
+        chromium.choose_mode(page, "cooc")
+        page.set_input_files("#cooc-file", str(tiny_cooc_checkpoint))
+        page.wait_for_function("document.getElementById('cooc-exemplar').dataset.ready === '1'", timeout=30_000)
+        assert page.text_content("#cooc-message").startswith("click on the exemplar to place crop 1")
+        for selector in ("#cooc-message", "#cooc-crops", "#cooc-exemplar"):
+            box = page.locator(selector).bounding_box()
+            assert box["y"] >= -1 and box["y"] + box["height"] <= 800, (selector, box)  # scrolled to the message
+        chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors

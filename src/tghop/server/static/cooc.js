@@ -28,7 +28,7 @@ function coocShown() {
   } else if (!cooc.id) sayCooc("load a co-occurrence checkpoint (a .pt file of tghop cooc train)");
   else {
     resizeCoocBoard();
-    showCoocBoard();
+    showCoocBoard(true);
   }
 }
 
@@ -37,13 +37,17 @@ function coocShown() {
 // one) and when a canvas of a new size is made: from the mode's message (where a crop went), the crops (the colours
 // to place and paint with) and the exemplar down, where the window has room for the canvas at its size under them
 // (at 1024x700 a 64x64 exemplar's, a 128x192 canvas); else from the edit's heading. Enlarged up to 4 times, 640 px,
-// only as far as the window shows it whole (never below its size).
-function showCoocBoard() {
+// only as far as the window shows it whole (never below its size). `opening` (a checkpoint loaded, the mode chosen):
+// where the window has no room for the crops and the canvas at once (400x800) and no crop is placed yet, the message,
+// the crops and the exemplar are brought into view instead, the first step (0.62; 0.61 showed the edit, the message
+// "click on the exemplar to place crop 1" and the exemplar above it, out of sight).
+function showCoocBoard(opening) {
   const canvas = $("cooc-guide"), box = $("cooc-guide-box"), w = canvas.width, h = canvas.height;
   if ($("cooc").hidden || $("cooc-work").hidden || !w || !h) return;
-  const from = roomFor(box, w, h, $("cooc-message")) >= w ? $("cooc-message") : $("cooc-edit-title");
+  const fits = roomFor(box, w, h, $("cooc-message")) >= w, from = fits ? $("cooc-message") : $("cooc-edit-title");
   canvas.style.width = `${Math.max(w, Math.min(4 * w, 640, roomFor(box, w, h, from)))}px`;
-  intoView(box, from);
+  if (opening && !fits && !cooc.crops.some(Boolean)) intoView($("cooc-exemplar"), $("cooc-message"));
+  else intoView(box, from);
 }
 
 async function uploadCooc(file) {
@@ -75,7 +79,7 @@ async function uploadCooc(file) {
   renderCoocCrops();
   resizeCoocBoard(true);
   drawCoocExemplar();  // its size shown, so that the edit's canvas is sized and placed under it (showCoocBoard)
-  showCoocBoard();
+  showCoocBoard(true);
   if (cooc.info.builtin) {
     showCoocPicture(`/api/builtins/${cooc.info.builtin}.png`, `builtin:${cooc.info.builtin}`);
   } else {
