@@ -45,6 +45,7 @@ function resetBoard(b, h, w, fill) {
   b.w = w;
   b.labels = new Uint8Array(h * w).fill(fill);
   b.history = [];  // a new board (Reset keeps the one before it: paint.js)
+  updateButtons();  // Paint's Undo off (0.62: setMode said Paint's hint after the reset, which turned it off then)
   const canvas = $(b.canvas);
   canvas.width = w;
   canvas.height = h;
