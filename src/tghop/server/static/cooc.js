@@ -239,10 +239,13 @@ function onCoocEdit() {
 }
 
 function initCooc() {
-  $("cooc-file").addEventListener("change", (e) => uploadCooc(e.target.files[0]));
+  // Each chooser emptied once read, as the page's others (app.js): the same file chosen again is a change (0.62; 0.61
+  // did nothing when the checkpoint or its picture was chosen again, after a refusal or to start its crops over)
+  $("cooc-file").addEventListener("change", (e) => { uploadCooc(e.target.files[0]); e.target.value = ""; });
   $("cooc-picture").addEventListener("change", (e) => {
     const file = e.target.files[0];
     if (file && cooc.info) showCoocPicture(URL.createObjectURL(file), file.name);
+    e.target.value = "";
   });
   $("cooc-exemplar").addEventListener("click", onCoocClick);
   wireBoard(coocBoard);
