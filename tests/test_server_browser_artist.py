@@ -636,3 +636,20 @@ def test_a_checkpoint_loaded_in_a_narrow_window_shows_where_to_place_the_crops(p
             assert box["y"] >= -1 and box["y"] + box["height"] <= 800, (selector, box)  # scrolled to the message
         chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
+
+
+def test_a_window_made_lower_sizes_paints_canvas_again(page):
+    # Paint's canvas (and Inpaint's picture, Co-occurrence's edit) kept the size it had for the window the mode was
+    # chosen in: a window made lower, 1200x1400 to 1024x700, cut a 256x256 canvas shown 640 px high at its foot (0.61).
+    chromium.load_fresh(page, FAST_FIT)
+    chromium.fit_builtin(page, "bricks")
+    page.fill("#height", "256")
+    page.fill("#width", "256")
+    chromium.choose_mode(page, "paint")
+    assert page.locator("#guide").bounding_box()["height"] > 600  # room for it in the tall window
+    with window(page, 1024, 700):
+        page.evaluate("document.getElementById('modes-row').scrollIntoView({ block: 'start' })")
+        page.wait_for_function("(() => { const r = document.getElementById('guide').getBoundingClientRect();"
+                               " return r.bottom <= innerHeight && r.height >= 256; })()", timeout=5_000)
+        chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors

@@ -40,6 +40,20 @@ function setMode(mode) {
   else if (mode === "morph") morphPicked();
 }
 
+// The mode's picture to paint on (Inpaint's, Paint's canvas, Co-occurrence's edit) sized again for a window resized (a
+// phone turned, a window made smaller), a moment after the last resize: 0.61 kept the size it had for the window the
+// mode was chosen in, a canvas sized for a tall window cut off at the foot of a low one.
+let resizeTimer = null;
+
+function onResize() {
+  clearTimeout(resizeTimer);
+  resizeTimer = setTimeout(() => {
+    if (!$("inpaint").hidden) sizeEditor();
+    if (!$("paint").hidden) sizeGuide();
+    if (!$("cooc").hidden) sizeCoocBoard();
+  }, 100);
+}
+
 // The built-in menu shows the exemplar of the working model (or of the fit running). Picking the one it
 // shows fits it again (after a cancel, or with other fit settings): while its list is open the menu shows a
 // hidden copy of that option, so that any pick is a change; put back when the list closes with no pick.
@@ -189,6 +203,7 @@ async function init() {
     if (name.endsWith(".npz")) uploadModel(file); else if (name.endsWith(".pt")) uploadCooc(file); else fitFile(file);
   });
   window.addEventListener("pagehide", onPageHide);
+  window.addEventListener("resize", onResize);
   wireKeptFields();  // Generate's fields, the fit settings and the modes' kept across a reload (history.js)
   await restoreHistory();  // the recent results of before a reload
   await restoreFields();  // the fields

@@ -42,12 +42,20 @@ function coocShown() {
 // the crops and the exemplar are brought into view instead, the first step (0.62; 0.61 showed the edit, the message
 // "click on the exemplar to place crop 1" and the exemplar above it, out of sight).
 function showCoocBoard(opening) {
+  const fits = sizeCoocBoard();
+  if (fits === null) return;
+  if (opening && !fits && !cooc.crops.some(Boolean)) intoView($("cooc-exemplar"), $("cooc-message"));
+  else intoView($("cooc-guide-box"), fits ? $("cooc-message") : $("cooc-edit-title"));
+}
+
+// The edit's canvas sized as showCoocBoard says (a window resized too: app.js): whether it fits under the message, the
+// crops and the exemplar (null: not shown).
+function sizeCoocBoard() {
   const canvas = $("cooc-guide"), box = $("cooc-guide-box"), w = canvas.width, h = canvas.height;
-  if ($("cooc").hidden || $("cooc-work").hidden || !w || !h) return;
+  if ($("cooc").hidden || $("cooc-work").hidden || !w || !h) return null;
   const fits = roomFor(box, w, h, $("cooc-message")) >= w, from = fits ? $("cooc-message") : $("cooc-edit-title");
   canvas.style.width = `${Math.max(w, Math.min(4 * w, 640, roomFor(box, w, h, from)))}px`;
-  if (opening && !fits && !cooc.crops.some(Boolean)) intoView($("cooc-exemplar"), $("cooc-message"));
-  else intoView(box, from);
+  return fits;
 }
 
 async function uploadCooc(file) {
