@@ -12,6 +12,7 @@ from tghop import TGHopError, data
 from tghop.imageio import save_image, to_uint8
 from tghop.inpaint import check_hole, extend, inpaint
 from tghop.modelfile import save_model
+from tghop.period import match_band
 from tghop.synthesis import TGHop
 
 from conftest import assert_user_error, cli
@@ -188,6 +189,23 @@ def test_a_block_is_matched_on_the_known_pixels_near_those_it_fills(order, fill)
                   seam_window=0, refine=0, patch_refine=0, order=order)
     assert np.array_equal(out[~hole], image[~hole])
     assert np.allclose(out[hole], fill)  # a hole's in 0.60: the blend's 0.5
+
+
+def test_a_regular_picture_is_matched_over_its_period():
+    # 0.61 matched every hole's block within an overlap (5 px) of the pixels it fills: beside a hole between two
+    # mortar lines those are all brick, so a patch whose mortar fell in the hole matched as well as the right one,
+    # and builtin bricks' courses broke (docs/choices.md, Inpainting "0.62"). A regular picture's blocks are matched
+    # within its period (here 24 rows), which holds a mortar line on each side.
+    rows = np.where(np.arange(128 + 32) % 24 < 3, 0.2, 0.7).astype(np.float32)  # a mortar line every 24 rows
+    image = np.repeat(rows[:128, None, None], 128, axis=1)
+    hole = np.zeros((128, 128), bool)
+    hole[57:63] = True  # rows 9 to 14 of a period: brick within 5 px on both sides, mortar 7 and 10 px away
+    phases = [np.repeat(rows[k:k + 32, None, None], 32, axis=1) for k in range(24)]  # the stripes at every phase
+    assert match_band(image, hole, 5, 32) == 24
+    for seed in range(4):  # 0.61 put mortar in the hole with seeds 2 and 3
+        out = inpaint(_TwoPatches(*phases), image, hole, rng=seed, detail=0.0, flat_share=0.0, tolerance=0.0,
+                      seam_window=0, refine=0, patch_refine=0)
+        assert np.array_equal(out, image), seed
 
 
 def test_odd_shapes_holes_at_the_border_and_nearly_everything(model, cells):

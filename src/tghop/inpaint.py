@@ -66,6 +66,7 @@ from .hole_refine import refine_hole, stitch_hole
 from .masks import snap_to_levels
 from .layout import as_layout_progress, downsample, upsample
 from .patches import downsample_mask
+from .period import match_band
 from .quilting import GUIDE_SCALE, boundary_cut_mask, default_overlap, flat_factors, gradient_energy
 from .patch_refine import refine_image, steps_for
 from .settings import BY_NAME, check_settings
@@ -90,7 +91,8 @@ RIM_MATCH_WEIGHT = 4.0
 #: its pixels still to fill, as quilting matches its overlap strips; 0: all its known pixels (0.60). Matched over a
 #: block's whole known part (up to 27 of 32 columns beside a hole's edge), the best patches were the blended ones,
 #: and a fill of large elements came out as a quilt of faint blocks (0.61; docs/choices.md, Inpainting "matched in a
-#: band"). Row by row (:func:`extend`) a block is matched on all of them, half a block on a grown picture's edge (0.60).
+#: band"). A regular picture's blocks are matched within its period instead (:func:`tghop.period.match_band`: brick
+#: courses broke in the narrow band, 0.62). Row by row (:func:`extend`) a block is matched on all of them (0.60).
 MATCH_BAND = 1
 
 #: The integer images filled, each kept at its depth: its levels' top (``v / top`` is the value in [0, 1],
@@ -782,7 +784,7 @@ def _fill(work, hole, distance, pool, tables, p, tile, tolerance, detail, guide,
     owner = np.full((h, w), -1, dtype=np.int32)  # the block each hole pixel was pasted from last
     offsets = np.arange(p)
     rim = _rim_weights(hole, tile)
-    band = MATCH_BAND * overlap if order == "edge" else 0
+    band = match_band(work, hole, MATCH_BAND * overlap, p) if order == "edge" else 0  # a regular picture's period
     if guide is not None:  # the pool's box means, as quilting compares them with its guide
         guide, guide_weight = guide
         # The guide counts from nothing at the hole's edge to whole a patch side inside it:
