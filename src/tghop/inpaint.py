@@ -8,9 +8,9 @@ an exemplar), chosen so that they continue what surrounds them:
 2. Blocks of ``P x P`` on the quilting grid (step ``P - overlap``) that touch the hole are
    filled from the hole's edge inwards (smallest distance to a known pixel first). Each
    takes a pool patch whose squared error over the block's *known* pixels (the image's
-   own and those filled before, within ``MATCH_BAND`` overlaps of its pixels to fill in a hole; the image's
-   within ``RIM_MATCH_WIDTH`` of the hole count ``RIM_MATCH_WEIGHT`` times) is within ``1 + tolerance`` of the
-   best, preferring
+   own and those filled before, within ``MATCH_BAND`` overlaps of its pixels to fill in a hole, within its period
+   in a regular picture (:func:`tghop.period.match_band`); the image's within ``RIM_MATCH_WIDTH`` of the hole
+   count ``RIM_MATCH_WEIGHT`` times) is within ``1 + tolerance`` of the best, preferring
    detailed ones as quilting does (``detail``); the error of every pool patch is one
    matrix-vector product. It is pasted on the block's hole pixels only, along
    minimum-error boundary cuts (:func:`tghop.quilting.boundary_cut_mask`) through the
@@ -428,7 +428,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         pixels, worse for a hole inside them; docs/choices.md, Inpainting "0.46"); row by row,
         a block is centred on each edge of the known pixels' extent that lies inside the image
         (a grown picture's edges, 0.60) and matched on all its known pixels; from the edge, on
-        those within an overlap of its pixels to fill (:data:`MATCH_BAND`, 0.61).
+        those within an overlap of its pixels to fill (:data:`MATCH_BAND`, 0.61), a regular picture's period (0.62).
     seam_window : int
         Remove the steps in tone across the fill's seams, between its blocks and at the hole's
         edge, in the gradient domain (:func:`tghop.hole_refine.stitch_hole`, the known pixels held), each seam
