@@ -111,9 +111,23 @@ def repeat(image, hole, patch_size):
 
 
 def match_band(image, hole, overlap, patch_size):
-    """The band, in pixels (8-neighbour steps), of known pixels a hole's block is matched on: ``overlap`` for an
-    irregular picture, its period (:func:`repeat`, at least ``overlap``, at most ``patch_size``) for a regular
-    one (strength at least :data:`REGULAR`). Read around the hole's bounding box (``MARGIN`` patch sides).
+    """The band of known pixels a hole's block is matched on (:func:`tghop.inpaint.inpaint`, ``order`` "edge").
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, C)
+        Float; only the pixels outside ``hole`` within :data:`MARGIN` patch sides of its bounding box are read.
+    hole : ndarray of bool, shape (H, W)
+    overlap : int
+        The band of an irregular picture (0.61's for every picture).
+    patch_size : int
+
+    Returns
+    -------
+    int
+        Pixels (8-neighbour steps) from the block's pixels to fill: ``overlap`` where the picture's repeat
+        (:func:`repeat`) is weaker than :data:`REGULAR` or the hole is empty, else its period, at least
+        ``overlap`` and at most ``patch_size`` (every known pixel of a block).
     """
     rows, cols = np.flatnonzero(hole.any(axis=1)), np.flatnonzero(hole.any(axis=0))
     if not rows.size:
