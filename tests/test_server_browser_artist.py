@@ -91,8 +91,8 @@ def test_a_reload_keeps_generates_fields_and_the_fit_settings(page):
         return [id, e.type === "checkbox" ? e.checked : e.value];
       }))""")
     assert values == {"height": "48", "width": "64", "seed": "7", "refine": "2", "n_patches": "", "tile": True,
-                      "paper-gen": False, "quality": "best", "layout": False, "scale": "0.5", "n_clusters": "8",
-                      "n_codewords": "40", "stride": "4", "max_patches": "1500"}, values
+                      "paper-gen": False, "quality": "best", "layout": False, "scale": "0.5",
+                      **{k: v for k, v in FAST_FIT.items() if k != "layout_factor"}}, values
     assert page.eval_on_selector("#fit-settings", "d => d.open")  # the settings shown as they were left
     chromium.load_empty(page)  # forgotten with the rest
     assert page.input_value("#height") == "256" and page.input_value("#seed") == "1" and not page.is_checked("#tile")
