@@ -162,6 +162,23 @@ def fit_builtin(page, name):
     page.wait_for_selector("#summary:not([hidden])")
 
 
+def upload_model(page, path, timeout=60_000):
+    """Load the model file at ``path`` with the page's model-file input and wait until it is the working model and
+    the page has settled on it: its summary shown, naming it (a summary of the model before, or its box still
+    hidden and the page's layout still to move, passed a wait on the message alone). Returns the model's id (the
+    file's SHA-256, as the server keeps it)."""
+    import hashlib
+    from pathlib import Path
+
+    model_id = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    page.set_input_files("#model-file", str(path))
+    page.wait_for_function("(id) => state.modelId === id && !document.getElementById('summary').hidden &&"
+                           " /^(model|material) /.test(document.getElementById('summary').textContent) &&"
+                           " document.getElementById('summary').textContent.includes(' ' + id.slice(0, 12) + ':')",
+                           arg=model_id, timeout=timeout)
+    return model_id
+
+
 def wait_said(page, fragment, timeout=90_000):
     """Wait until the page's message says ``fragment``; the message. AssertionError naming what it says
     instead after ``timeout`` milliseconds."""

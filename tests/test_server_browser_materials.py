@@ -45,7 +45,8 @@ def test_fit_a_material_generate_see_and_download_every_map(page, tmp_path):
     page.fill("#height", "64")
     page.fill("#width", "80")
     page.fill("#seed", "3")
-    with page.expect_response(lambda r: r.url.endswith("/images")) as answer:
+    # the generation's answer, waited for as long as the fit (0.61: Playwright's 30 s, which a loaded run passed)
+    with page.expect_response(lambda r: r.url.endswith("/images"), timeout=90_000) as answer:
         page.click("#go")
     # The page asks for multipart: the maps as files, nothing to decode
     assert answer.value.headers["content-type"].startswith("multipart/form-data; boundary=")
@@ -214,7 +215,7 @@ def test_fill_a_hole_in_every_map_of_a_material_result(page, tmp_path):
     page.mouse.down()
     page.mouse.move(box["x"] + 60 * sx, box["y"] + 34 * sy, steps=10)
     page.mouse.up()
-    with page.expect_response(lambda r: r.url.endswith("/inpaint")) as answer:
+    with page.expect_response(lambda r: r.url.endswith("/inpaint"), timeout=90_000) as answer:
         page.click("#fill")
     assert answer.value.status == 200
     page.wait_for_function("document.getElementById('result-caption').textContent === 'inpainted: 64x80, seed 6'",

@@ -202,8 +202,7 @@ def test_paint_says_a_material_does_not_go_with_a_texture_model(page, tmp_path):
     fit(page, "cells")
     fit(page, "bricks")
     save_material(tmp_path / "stone.npz")
-    page.set_input_files("#model-file", str(tmp_path / "stone.npz"))
-    page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')")
+    chromium.upload_model(page, tmp_path / "stone.npz")
     chromium.choose_mode(page, "paint")
 
     def box(name):
@@ -237,9 +236,8 @@ def test_paint_names_the_models_the_server_refuses_as_the_page_names_them(page, 
     save_model(Material(model=TGHop(n_clusters=6, n_codewords=30, stride=4, max_patches=1500, layout_factor=None),
                         rng=0).fit(albedo, {"roughness": example_maps(albedo)["roughness"]}), tmp_path / "rough.npz")
     for name in ("stone.npz", "rough.npz"):
-        page.set_input_files("#model-file", str(tmp_path / name))
-        page.wait_for_function(f"document.getElementById('summary').textContent.startsWith('material ') && "
-                               f"document.querySelector('#paint-models').textContent.includes('{name}')")
+        chromium.upload_model(page, tmp_path / name)
+        page.wait_for_function("(n) => document.querySelector('#paint-models').textContent.includes(n)", arg=name)
     chromium.choose_mode(page, "paint")
     for box in page.locator("#paint-models input").all():
         box.uncheck()
