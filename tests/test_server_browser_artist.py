@@ -195,7 +195,10 @@ def test_inpaint_shows_its_picture_with_the_brushs_tools_in_a_narrow_window(page
     bricks_result(page, 3, (128, 192))
     with window(page, 400, 800):
         choose_inpaint(page)
-        page.wait_for_timeout(300)
+        with contextlib.suppress(sync_api.TimeoutError):  # laid out (0.61 waited 300 ms); the checks below say what
+            page.wait_for_function("() => ['brush', 'fill', 'mask'].every((id) => {"
+                                   " const r = document.getElementById(id).getBoundingClientRect();"
+                                   " return r.height > 0 && r.top >= 0 && r.bottom <= 800; })", timeout=5_000)
         for selector in ("#brush", "#fill", "#mask"):
             box = page.locator(selector).bounding_box()
             assert box["y"] >= 0 and box["y"] + box["height"] <= 800, (selector, box)

@@ -241,11 +241,35 @@ def test_maps_added_while_a_fit_runs_fit_the_material(page, tmp_path):
         page.click("#fit-settings summary")
     page.fill("#stride", "5")  # settings fitted nowhere yet: each fit takes a while
     page.select_option("#builtin", "")
+    posted, answered, failed = chromium.posted_fits(page), [], []  # the fits asked for, the server's answers (jobs)
+
+    def answer(response):
+        if response.request.method == "POST" and response.url.endswith("/api/models"):
+            answered.append(response)
+
+    def fail(request):
+        if request.method == "POST" and request.url.endswith("/api/models"):
+            failed.append(request)
+
+    page.on("response", answer)
+    page.on("requestfailed", fail)
     page.select_option("#builtin", "bricks")  # a texture fit starts
     page.set_input_files("#maps", [str(tmp_path / "normal.png")])  # and at once the material's
     page.wait_for_function("document.getElementById('fit-status').dataset.state === 'done'", timeout=90_000)
     page.wait_for_function("document.getElementById('summary').textContent.startsWith('material ')", timeout=30_000)
-    page.wait_for_timeout(1500)  # a replaced fit's answer, had it come later, would show by now
+    # a replaced fit's answer and its end, had they come later, would show by now: each fit asked for answered and
+    # its job ended (0.61 waited 1.5 s instead)
+    for _ in range(3000):
+        if len(answered) + len(failed) >= len(posted):
+            break
+        page.wait_for_timeout(20)
+    assert len(posted) >= 1 and len(answered) + len(failed) >= len(posted), (posted, answered, failed)
+    for job in (r.json()["job"] for r in answered):
+        page.wait_for_function("async (job) => (await (await fetch(`/api/jobs/${job}`)).json()).state !== 'running'",
+                               arg=job, polling=100, timeout=90_000)
+    page.remove_listener("response", answer)
+    page.remove_listener("requestfailed", fail)
+    page.wait_for_timeout(200)
     assert page.text_content("#summary").startswith("material ")
     assert "maps: albedo, 8-bit; normal (normal), 16-bit" in page.text_content("#summary")
 

@@ -1035,7 +1035,11 @@ def test_a_morph_below_the_fold_of_a_narrow_window_is_scrolled_into_view(page):
         page.wait_for_function("document.getElementById('morph-message').textContent.startsWith('done')"
                                " && document.getElementById('result-caption').textContent.startsWith('morph')",
                                timeout=90_000)
-        page.wait_for_timeout(300)  # scrolled once the picture is drawn
+        try:  # scrolled once the picture is drawn (0.61 waited 300 ms)
+            page.wait_for_function("() => { const r = document.getElementById('result').getBoundingClientRect();"
+                                   " return r.top < 800 && r.bottom > 0; }", timeout=5_000)
+        except sync_api.TimeoutError:
+            pass
         box = page.locator("#result").bounding_box()
         assert box["y"] < 800 and box["y"] + box["height"] > 0, box  # in sight
         chromium.choose_mode(page, "view")
