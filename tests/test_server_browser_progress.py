@@ -110,8 +110,8 @@ def test_a_strip_whose_model_is_no_longer_the_working_one_is_cleared_when_it_end
     chromium.choose_mode(page, "view")
     fit(page, "cells")  # in the server's cache: picked again below, it is the working model at once
     fit(page, "bricks")
-    page.fill("#height", "64")
-    page.fill("#width", "64")
+    page.fill("#height", "32")  # 16 seeds: small ones (0.61's 64x64 were each 4 times the work)
+    page.fill("#width", "32")
     page.fill("#n_patches", "400")
     page.fill("#seed", "30")
     page.evaluate("""() => { window.stripImages = 0; new MutationObserver((changes) => {
