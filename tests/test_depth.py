@@ -274,7 +274,8 @@ def test_a_model_of_a_16bit_exemplar_warns_as_the_exemplar_does(tmp_path):
         old["exemplar_depth"] = bad
         np.savez(tmp_path / "bad.npz", **{**{k: arrays[k] for k in arrays.files},
                                           "__meta__": np.array(json.dumps(old))})
-        with pytest.raises(ModelFileError, match=r"fit the model again.*the metadata's exemplar_depth must be 8, 16 or 32 "):
+        with pytest.raises(ModelFileError,
+                           match=r"fit the model again.*the metadata's exemplar_depth must be 8, 16 or 32 "):
             load_model(tmp_path / "bad.npz")
 
 
