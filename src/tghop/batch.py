@@ -355,8 +355,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         from .imageio import check_output_path
 
         check_output_path(outdir / LEDGER, what="ledger", error=TGHopError)  # a file can be made in OUTDIR
-        if jobs or renames or (prune and orphans):
-            ledger_file = open_ledger(outdir)  # locked: pruning and moving too wait for no other run
+        # Locked whatever there is to do: a run with nothing to make writes the hashes and the contact sheet too, which
+        # 0.61 wrote unlocked, over those of a run under way (0.62); pruning and moving wait for no other run either.
+        ledger_file = open_ledger(outdir)
         # The inputs' hashes as soon as they are known (0.61; 0.60 wrote them at the end, so that after a kill -9 or
         # a lost machine the next run read every byte of every exemplar again: hours of a studio's library).
         write_hashes(outdir, hashes, found, [r.get("source") for r in previous.values()])
