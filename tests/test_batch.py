@@ -1556,8 +1556,36 @@ def test_a_worker_that_dies_is_retried_then_recorded(tmp_path, cluster):
     assert "tries on a local cluster" not in failed["error"] and "allowed-failures" in failed["error"], failed
     assert not leftovers(out2) and not (out2 / "a").exists()
     assert ledger(out2)[0]["status"] == "failed" and failed["cause"] == "run"
+    assert failed["worker_died"] and failed["worker_deaths"] == 1  # counted over runs (0.62)
     (again,) = run(src, out2, client=client)  # a lost worker is no fault of the input: tried again
     assert again["status"] == "ok" and not again["skipped"]
+
+
+def worker_died(job):
+    """The record the driver writes for a task whose worker died on every try (tghop.batch_dask)."""
+    return {"status": "failed", "error": "the worker running it died on every try (killed or out of memory; 4 tries)",
+            "cause": "run", "outputs": [], "model": None, "thumbnail": None, "seed_used": job.get("seed"),
+            "started": None, "seconds": None, "task_lost": True, "worker_died": True}
+
+
+def test_an_exemplar_whose_worker_dies_in_every_run_becomes_its_own_failure(tmp_path):
+    # 0.61 tried it again in every rerun: one file that crashes the decoder killed workers in each, for ever.
+    from tghop.batch_plan import LOST_RUNS
+
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    (src / "sub" / "a.png").unlink()
+    for runs in range(1, LOST_RUNS + 1):
+        (rec,) = run(src, out, workers=1, task=worker_died)
+        assert not rec["skipped"] and rec["worker_deaths"] == runs
+        assert rec["cause"] == ("input" if runs == LOST_RUNS else "run"), rec
+    assert "--retry-failed" in rec["error"]
+    (rec,) = run(src, out, workers=1, task=worker_died)
+    assert rec["skipped"] and rec["status"] == "failed"  # skipped as failed before, its reason and fix in its line
+    p = subprocess.run([sys.executable, "-m", "tghop", "batch", str(src), "-o", str(out), "--workers", "1",
+                        "--size", "48", "--seed", "1", *CLI_FAST], capture_output=True, text=True)
+    assert p.returncode == 1 and "1 skipped as failed before" in p.stderr and "--retry-failed" in p.stderr, p.stderr
+    (rec,) = run(src, out, workers=1, retry_failed=True)  # the real task: it was the crash, not the file
+    assert rec["status"] == "ok" and not rec["skipped"]
 
 
 def die_in_the_second_image(job):

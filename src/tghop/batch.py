@@ -46,7 +46,7 @@ from .batch_plan import (IMAGE_SUFFIXES, LEDGER, NAME_MAX, RUNNING, append_ledge
                          find_orphans, find_work, input_digest, inputs_sha256, is_done, is_known_failure,
                          keep_ledger_names, mark_running, move_renamed, open_ledger, prune_orphans, read_hashes,
                          read_ledger, read_ledger_files, remove_stale, renamable, renamed_from, sync_ledger,
-                         write_hashes)
+                         worker_deaths, write_hashes)
 from .batch_task import disk_full, process_exemplar, remove_temporaries
 from .contact_sheet import CONTACT_SHEET, write_contact_sheet as _write_sheet
 from .manifest import parse_bool, parse_int, parse_size
@@ -208,7 +208,8 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         image, flat, too small, a bad map) although their files, settings and tghop's version are
         unchanged. Without it a rerun skips them (:func:`tghop.batch_plan.is_known_failure`) and
         returns their earlier record; a failure of the run's (memory, a lost worker, an
-        interruption) is always tried again.
+        interruption) is tried again, but for a worker dead on every try in
+        :data:`~tghop.batch_plan.LOST_RUNS` runs in a row (0.62: the exemplar's own failure, a decoder's crash).
     max_depth : int, optional
         How many levels of subfolders of a folder ``source`` are searched: 0 its own images only,
         1 those of its subfolders too, ...; None (the default) every level. Refused for a manifest.
@@ -296,7 +297,8 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
             in_process = True
     task = process_exemplar if task is None else task
     standing = {}  # the last line done of each exemplar, where only failed tries follow it (0.62)
-    previous, earlier_files = read_ledger_files(outdir, standing)
+    lost = {}  # the runs in a row each exemplar's worker died on every try (0.62)
+    previous, earlier_files = read_ledger_files(outdir, standing, lost)
     keep_ledger_names(items, previous)
     orphans = find_orphans(outdir, earlier_files, [it["name"] for it in items])
     jobs, results, failed_before, renames = [], {}, 0, []
@@ -389,6 +391,8 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                     rec = {"name": job["name"], "source": job["source"], "sha256": job["sha256"],
                            "settings": job["settings"], "version": __version__, **record}
                     rec["finished"] = time.time()
+                    if rec.get("worker_died"):  # in LOST_RUNS runs in a row: the exemplar's own failure (0.62)
+                        worker_deaths(rec, lost.get(job["name"]))
                     append_ledger(ledger_file, rec, sync=False)
                     recs.append((job, rec))
                 sync_ledger(ledger_file)

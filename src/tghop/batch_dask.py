@@ -246,7 +246,8 @@ def _died_record(job, exc, retries) -> dict:
     # task_lost (0.62): it may have moved files before its worker died, so an earlier line done no longer says the
     # exemplar's folder (tghop.batch_plan.read_ledger_files' standing)
     return {"status": "failed", "error": error, "cause": "run", "outputs": [], "model": None, "thumbnail": None,
-            "seed_used": job.get("seed"), "started": None, "seconds": None, "task_lost": True}
+            "seed_used": job.get("seed"), "started": None, "seconds": None, "task_lost": True,
+            "worker_died": name == "KilledWorker"}  # counted over runs (0.62: tghop.batch_plan.worker_deaths)
 
 
 #: How long :func:`connect` tries to reach a scheduler (Dask tries again until then, a refused connection too: one

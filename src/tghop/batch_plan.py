@@ -65,6 +65,10 @@ NAME_MAX = 160
 #: a run compacts the ledger (:func:`compact_ledger`; 0.59), which it does where they are as many as the lines
 #: kept too (a ledger of 1.8 KB a line: 1.8 MB dropped at least).
 COMPACT_MIN = 1000
+
+#: The runs in a row after which an exemplar whose worker died on every try (a decoder's crash, a size beyond the
+#: memory) counts as its own failure, skipped by reruns as a bad input is (0.62: :func:`worker_deaths`).
+LOST_RUNS = 3
 #: In OUTDIR: the SHA-256 a run found for each exemplar's files, with their size, times and inode then
 #: (:func:`input_digest`), so that a rerun need not read unchanged files again. A cache: without it (removed,
 #: unreadable) the files are hashed, as 0.57 hashed them on every run.
@@ -379,16 +383,19 @@ def read_ledger(outdir) -> dict:
     return read_ledger_files(outdir)[0]
 
 
-def read_ledger_files(outdir, standing=None):
+def read_ledger_files(outdir, standing=None, lost=None):
     """:func:`read_ledger`'s lines, and the files every line of each exemplar lists (by name):
     an earlier run's outputs stay in its folder after a later line that lists none (a failed
     try), until a run of it succeeds (:func:`remove_stale`). ``standing`` (a dict): gets, by name, the last
     line done ("ok") of each exemplar where only failures its task returned follow it (0.62): such a task moved
     no file (it moves them all at its end), so the folder still holds that line's files (:func:`tghop.batch.run`
     skips them where that line's input and settings are the job's). A line ``interrupted``, a task lost
-    (its worker dead on every try) or a rename ends it: files may have changed (:func:`_ends_standing`)."""
+    (its worker dead on every try) or a rename ends it: files may have changed (:func:`_ends_standing`). ``lost`` (a
+    dict): gets, by name, the last lines in a row whose worker died on every try, as ``(count, (sha256, settings))``
+    (:func:`worker_deaths`)."""
     records, files = {}, {}
     standing = {} if standing is None else standing
+    lost = {} if lost is None else lost
     try:
         text = (Path(outdir) / LEDGER).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):
@@ -400,6 +407,10 @@ def read_ledger_files(outdir, standing=None):
             continue  # last value), arrays nested thousands deep (0.59: a traceback)
         if isinstance(rec, dict) and isinstance(rec.get("name"), str):
             records[rec["name"]] = rec
+            if rec.get("worker_died"):
+                lost[rec["name"]] = (_deaths(rec, lost.get(rec["name"])), (rec.get("sha256"), rec.get("settings")))
+            else:
+                lost.pop(rec["name"], None)
             if rec.get("status") == "ok":
                 standing[rec["name"]] = rec
             elif _ends_standing(rec):
@@ -407,6 +418,25 @@ def read_ledger_files(outdir, standing=None):
             with contextlib.suppress(TypeError):  # a hand-edited line's odd fields list nothing
                 files.setdefault(rec["name"], set()).update(f for f in _listed_files(rec) if isinstance(f, str))
     return records, files
+
+
+def _deaths(rec: dict, before) -> int:
+    """How many runs in a row ``rec``'s worker died on every try of its exemplar: 1 and those of ``before`` (the
+    exemplar's earlier count, :func:`read_ledger_files`' ``lost``) where its input and settings were the same."""
+    return 1 + (before[0] if before and before[1] == (rec.get("sha256"), rec.get("settings")) else 0)
+
+
+def worker_deaths(rec: dict, before) -> None:
+    """Count in ``rec`` (a ledger line whose worker died on every try, ``worker_died``) the runs in a row that ended so
+    (``before``: :func:`read_ledger_files`' ``lost`` of its exemplar); from :data:`LOST_RUNS` on, it is the exemplar's
+    own failure (``cause`` "input", :func:`is_known_failure`): reruns skip it until it changes or ``--retry-failed``
+    is given. 0.61 tried it again in every run, and an exemplar that crashes the decoder killed workers in each."""
+    rec["worker_deaths"] = runs = _deaths(rec, before)
+    if runs >= LOST_RUNS:
+        rec["cause"] = "input"
+        rec["error"] = (f"{rec.get('error')}; so in {runs} runs in a row: taken as this exemplar's own failure (it "
+                        "crashes its worker: a decoder's crash, or a size beyond the memory), skipped by reruns until "
+                        "it changes; --retry-failed (retry_failed=True) tries it again")
 
 
 def _ends_standing(rec: dict) -> bool:

@@ -117,7 +117,8 @@ def stopped_line(plan, last, failed) -> str:
                    "subfolders' too, ... [default: every level]")
 @click.option("--retry-failed", is_flag=True,
               help="Try again the exemplars that failed before for a cause in their input (not an image, flat, too "
-                   "small) although their files and settings are unchanged; without it a rerun skips them.")
+                   "small; a worker dead on every try in 3 runs in a row) although their files and settings are "
+                   "unchanged; without it a rerun skips them.")
 @QUIET_OPTION
 def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune, max_depth, retry_failed, quiet,
           **options):
