@@ -1100,6 +1100,50 @@ def test_folders_of_exemplars_gone_from_source_are_said_and_pruned_on_request(tm
     assert a["skipped"] and a["status"] == "ok"
 
 
+def test_prune_keeps_the_results_of_a_source_folder_missing_or_unreadable(tmp_path, monkeypatch):
+    # 0.61 pruned every exemplar of a share that was down (or a folder not mounted): a studio lost finished work.
+    from tghop import batch_plan
+
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    save_image(data.cells(64, rng=5), src / "sub" / "c.png")
+    assert len(run(src, out, workers=1)) == 3
+    (src / "sub").rename(tmp_path / "away")  # the share is down
+    with pytest.warns(UserWarning, match=r"2 folders of exemplars no longer in SOURCE not pruned \(sub__a, sub__c\): "
+                      r".*/src/sub is missing .*mount it and run again, or .*tghop batch --prune --force"):
+        run(src, out, workers=1, prune=True)
+    assert (out / "sub__a" / "sub__a.npz").is_file() and (out / "sub__c" / "sub__c.npz").is_file()
+    code, _, err, _ = invoke("batch", "src", "-o", "out", "--workers", "1", "--size", "48", "--seed", "1", "--prune",
+                             *CLI_FAST, cwd=tmp_path)
+    assert code == 0 and "sub__a: kept, not pruned" in err and "0 removed, 2 kept, not pruned" in err, err
+    (tmp_path / "away").rename(src / "sub")
+    (src / "sub" / "a.png").unlink()
+    listdir = os.listdir
+
+    def unreadable(path):
+        if str(path) == str(src / "sub"):
+            raise PermissionError(13, "Permission denied")
+        return listdir(path)
+
+    monkeypatch.setattr(batch_plan.os, "listdir", unreadable)
+    with pytest.warns(UserWarning, match="src/sub cannot be read .*never pruned"):
+        run(src, out, workers=1, prune=True, force=True)  # never, even forced
+    assert (out / "sub__a" / "sub__a.npz").is_file()
+    monkeypatch.undo()
+    (src / "sub").rename(tmp_path / "away")
+    run(src, out, workers=1, prune=True, force=True)  # forced: the folder is gone for good
+    assert not (out / "sub__a").exists() and not (out / "sub__c").exists()
+
+
+def test_prune_keeps_everything_where_most_of_the_library_would_go(tmp_path):
+    names = [f"x{i}" for i in range(batch.PRUNE_MIN + 2)]
+    previous = {n: {"source": str(tmp_path / "gone" / f"{n}.png")} for n in names}
+    (tmp_path / "gone").mkdir()  # an empty mount point: the folder is there, its images are not
+    held, said = batch.prune_held(names, previous, exemplars=3)
+    assert sorted(held) == sorted(names) and len(said) == 1 and "--prune --force" in said[0], said
+    assert batch.prune_held(names, previous, exemplars=3, force=True) == ({}, [])
+    assert batch.prune_held(names, previous, exemplars=len(names)) == ({}, [])  # half at most: pruned
+
+
 def test_a_warning_names_its_exemplar(tmp_path):
     # Two exemplars a.png in two folders, each with an alpha channel: the command said
     # "Warning: a.png: alpha channel dropped" twice, and which was which the ledger alone told.

@@ -44,9 +44,9 @@ from .batch_dask import (INSTALL_HINT, QUIET_CLUSTER, WORKER_ENVIRON, WORKER_MAL
                          dask_setup, import_distributed, local_cluster, run_distributed, tune_malloc)
 from .batch_plan import (IMAGE_SUFFIXES, LEDGER, NAME_MAX, RUNNING, append_ledger, check_own_files, compact_ledger,
                          find_orphans, find_work, input_digest, inputs_sha256, is_done, is_known_failure,
-                         keep_ledger_names, mark_running, move_renamed, open_ledger, prune_orphans, read_hashes,
-                         read_ledger, read_ledger_files, remove_stale, renamable, renamed_from, sync_ledger,
-                         worker_deaths, write_hashes)
+                         keep_ledger_names, mark_running, move_renamed, open_ledger, prune_orphans,
+                         read_hashes, read_ledger, read_ledger_files, remove_stale, renamable, renamed_from,
+                         sync_ledger, worker_deaths, write_hashes)
 from .batch_task import disk_full, process_exemplar, remove_temporaries
 from .contact_sheet import CONTACT_SHEET, write_contact_sheet as _write_sheet
 from .manifest import parse_bool, parse_int, parse_size
@@ -141,7 +141,7 @@ def _check_call(outdir, fit, generate, workers, callables) -> None:
 def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=None, generate=None,
         workers=None, client=None, scheduler=None, retries=3, progress=None, on_result=None, contact_sheet=True,
         task=None, prune=False, on_orphans=None, retry_failed=False, max_depth=None, on_plan=None,
-        worker_setup=None):
+        worker_setup=None, force=False):
     """Fit every exemplar of ``source`` and write a model and ``count`` images of each.
 
     Parameters
@@ -198,10 +198,16 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         Delete the folders an earlier run made in OUTDIR for exemplars no longer in ``source``
         (removed or renamed there since; :func:`tghop.batch_plan.find_orphans`): the files their
         ledger lines list, and the folder where nothing else is in it (:func:`tghop.batch_plan.prune_orphans`).
+        Kept, each said in a warning (0.62; :func:`prune_held`): those whose source folder cannot be
+        read, always; those whose source folder is missing (a share down), and all where more than half of the
+        exemplars would go (over 10), unless ``force``.
+    force : bool
+        With ``prune``: also the exemplars whose source folder is missing, however many (0.62).
     on_orphans : callable(orphans), optional
         Called once, before any work, where there are such folders: a list of dicts, ``name``
-        (the folder's), ``pruned`` (its files removed) and ``kept`` (the entries left in it: not
-        tghop's, so the folder stays). Without it, a warning names them.
+        (the folder's), ``pruned`` (its files removed), ``kept`` (the entries left in it: not
+        tghop's, so the folder stays) and ``held`` (0.62: why ``prune`` kept it, else None). Without it, a warning
+        names them.
 
     retry_failed : bool
         Try again the exemplars whose input failed in an earlier run (``cause`` "input": not an
@@ -427,8 +433,11 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     stopped = False  # by an exception: the contact sheet's own failure (a full disk) must not hide its line
     try:
         if orphans:  # before the work: a long run's log says it at its start
-            _report_orphans(outdir, orphans, prune_orphans(outdir, orphans, earlier_files) if prune else None,
-                            on_orphans)
+            held, said = prune_held(orphans, previous, len(items), force) if prune else ({}, [])
+            for line in said:  # a source folder missing or unreadable, too many at once: kept (0.62)
+                warnings.warn(f"{outdir}: {line}", stacklevel=2)
+            kept = prune_orphans(outdir, [n for n in orphans if n not in held], earlier_files) if prune else None
+            _report_orphans(outdir, orphans, kept, on_orphans, held)
         if in_process:
             for job in jobs:
                 counts["running"] = 1
@@ -507,10 +516,56 @@ def _move_renamed(outdir, ledger_file, renames, previous, earlier_files, jobs, r
         results[job["name"]] = {**rec, "skipped": True, "renamed": True}
 
 
-def _report_orphans(outdir, names, kept, on_orphans) -> None:
+#: ``--prune`` removes without ``--force`` at most this share of the exemplars (those pruned and SOURCE's), where
+#: more than :data:`PRUNE_MIN` would go (0.62: a library's share not mounted looks like its exemplars removed).
+PRUNE_SHARE = 0.5
+PRUNE_MIN = 10
+
+
+def prune_held(orphans, previous: dict, exemplars: int, force: bool = False) -> tuple:
+    """Which of ``orphans`` (:func:`tghop.batch_plan.find_orphans`) ``--prune`` must keep, and why: ``(held, lines)``,
+    ``held`` by name the reason, ``lines`` one message per reason (0.62; 0.61 pruned them all, and a studio whose
+    share was down lost its finished results). Kept whatever ``force`` says: those whose source folder (of their
+    last line's ``source``) cannot be read; unless ``force``: those whose source folder is missing (unmounted, a
+    share down), and all of them where more than :data:`PRUNE_SHARE` of the exemplars (``exemplars``: SOURCE's, and
+    these) and over :data:`PRUNE_MIN` would go."""
+    held, lines, seen = {}, {}, {}
+    for name in orphans:
+        source = (previous.get(name) or {}).get("source")
+        if not isinstance(source, str) or not os.path.isabs(source):
+            continue
+        folder = os.path.dirname(source)
+        if folder not in seen:
+            try:
+                os.listdir(folder)
+                seen[folder] = None
+            except (FileNotFoundError, NotADirectoryError):
+                seen[folder] = None if force else (
+                    f"{folder} is missing (a share down, a disk not mounted?); mount it and run again, or "
+                    "prune=True, force=True (tghop batch --prune --force) removes them")
+            except OSError as exc:
+                seen[folder] = (f"{folder} cannot be read ({exc.strerror or exc.__class__.__name__}); results whose "
+                                "source folder cannot be read are never pruned: make it readable and run again")
+        if seen[folder] is not None:
+            held[name] = seen[folder]
+            lines.setdefault(seen[folder], []).append(name)
+    rest = [n for n in orphans if n not in held]
+    if not force and len(rest) > PRUNE_MIN and len(rest) > PRUNE_SHARE * (exemplars + len(rest)):
+        why = (f"{len(rest):,} of {exemplars + len(rest):,} exemplars would go, more than {PRUNE_SHARE:.0%} (a share "
+               "not mounted?); mount it and run again, or prune=True, force=True (tghop batch --prune --force) "
+               "removes them")
+        held.update(dict.fromkeys(rest, why))
+        lines[why] = rest
+    return held, [f"{len(names):,} folder{'s' if len(names) != 1 else ''} of exemplars no longer in SOURCE not pruned "
+                  f"({', '.join(names[:3])}{' ...' if len(names) > 3 else ''}): {why}" for why, names in lines.items()]
+
+
+def _report_orphans(outdir, names, kept, on_orphans, held) -> None:
     """Say the folders of exemplars no longer in SOURCE (``kept``: None when not pruned, else
-    :func:`prune_orphans`'s folders left) to ``on_orphans``, or in a warning."""
-    found = [{"name": n, "pruned": kept is not None, "kept": (kept or {}).get(n, [])} for n in names]
+    :func:`prune_orphans`'s folders left; ``held``: those ``prune`` kept, :func:`prune_held`) to
+    ``on_orphans``, or in a warning."""
+    found = [{"name": n, "pruned": kept is not None and n not in held, "kept": (kept or {}).get(n, []),
+              "held": held.get(n)} for n in names]
     if on_orphans is not None:
         on_orphans(found)
         return

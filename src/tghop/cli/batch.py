@@ -112,6 +112,9 @@ def stopped_line(plan, last, failed) -> str:
 @click.option("--prune", is_flag=True,
               help="Delete the folders an earlier run made in OUTDIR for exemplars no longer in SOURCE (only the files "
                    "its ledger lists; a folder holding other files stays). Without it they are kept and named.")
+@click.option("--force", is_flag=True,
+              help="With --prune: also the folders of exemplars whose source folder is missing (a share down keeps "
+                   "them without it), however many; never those whose source folder cannot be read.")
 @click.option("--max-depth", type=click.IntRange(min=0), default=None, metavar="N",
               help="Levels of subfolders of a folder SOURCE searched for exemplars: 0 its own images only, 1 its "
                    "subfolders' too, ... [default: every level]")
@@ -120,7 +123,7 @@ def stopped_line(plan, last, failed) -> str:
                    "small; a worker dead on every try in 3 runs in a row) although their files and settings are "
                    "unchanged; without it a rerun skips them.")
 @QUIET_OPTION
-def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune, max_depth, retry_failed, quiet,
+def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune, force, max_depth, retry_failed, quiet,
           **options):
     """Fit every exemplar of SOURCE and write its model and COUNT images to OUTDIR.
 
@@ -145,6 +148,9 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
     with user_errors(progress):
         if scheduler is not None and workers is not None:
             raise click.UsageError("--workers and --scheduler: the scheduler's cluster has its own workers; give one")
+        if force and not prune:
+            raise click.UsageError("--force is for --prune (it removes the folders --prune keeps for a source folder "
+                                   "missing); give both, or neither")
         if max_depth is not None and os.path.isfile(source):
             raise click.UsageError(f"--max-depth is for a folder SOURCE; the manifest {source} lists its files: drop "
                                    "--max-depth (the manifest's rows are the exemplars)")
@@ -162,7 +168,7 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
         try:
             results = library.run(source, outdir, count=count, size=size, seed=seed, tile=generate.pop("tile"),
                                   fit=fit, generate=generate, workers=workers, scheduler=scheduler, retries=retries,
-                                  progress=progress, on_result=progress.result, prune=prune,
+                                  progress=progress, on_result=progress.result, prune=prune, force=force,
                                   on_orphans=orphans.extend, retry_failed=retry_failed, max_depth=max_depth,
                                   on_plan=progress.plan, worker_setup=quiet_tifffile)
         except library.SchedulerLostError as exc:  # its own status: "run it again", not "look at the failures"
@@ -185,7 +191,8 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
     ok = len(results) - len(failed)
     earlier = f" ({skipped:,} by an earlier run)" if skipped else ""
     for o in orphans:  # one line each: a log of thousands says which
-        said = "removed" if o["pruned"] and not o["kept"] else "kept" if not o["pruned"] else \
+        said = "removed" if o["pruned"] and not o["kept"] else "kept, not pruned (above)" if o.get("held") else \
+            "kept" if not o["pruned"] else \
             f"its files removed, the folder kept for what tghop did not make ({', '.join(o['kept'][:3])})"
         click.echo(f"no longer in SOURCE: {o['name']}: {said}", err=True)
     for r in results:  # 0.62: made again under the new name, the old folder kept as no longer in SOURCE (0.61)
@@ -231,9 +238,13 @@ def _orphans(orphans) -> str:
     if not orphans:
         return ""
     folders = f"{len(orphans)} folder{'s' if len(orphans) != 1 else ''} of exemplars no longer in SOURCE"
-    if not orphans[0]["pruned"]:
+    held = sum(bool(o.get("held")) for o in orphans)
+    if not any(o["pruned"] for o in orphans) and not held:
         return f"; {folders} kept (--prune removes them)"
     left = sum(bool(o["kept"]) for o in orphans)
+    if held:  # 0.62: a source folder missing or unreadable, too many at once (the warnings above say which and why)
+        return f"; {folders}: {len(orphans) - left - held} removed, {held} kept, not pruned (above)" + \
+            (f", {left} kept for files tghop did not make" if left else "")
     return f"; {folders}: {len(orphans) - left} removed, {left} kept for files tghop did not make" if left else \
         f"; {folders} removed"
 
