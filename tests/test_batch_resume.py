@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -194,6 +195,29 @@ def test_a_renamed_exemplar_keeps_its_files_under_the_new_name(tmp_path, monkeyp
     assert last["rock"]["renamed_to"] == "granite" and last["Slate"]["outputs"][1] == "Slate/Slate_1_rough.png"
     results = batch.run(src / "list.csv", out, size=32, seed=1, count=2, fit=FIT, workers=1)  # nothing to move now
     assert [(r["skipped"], r.get("renamed")) for r in results] == [(True, None), (True, None)]
+
+
+def test_a_rename_of_case_only_is_a_rename_and_its_old_folder_is_said(tmp_path):
+    # Rock.png to rock.png: 0.61 compared the names without case, so it neither moved its files (it made it again, and
+    # the folder Rock stayed on a case-sensitive file system) nor said that folder "no longer in SOURCE".
+    src, out = make_folder(tmp_path / "src", 1), tmp_path / "out"
+    (src / "e0.png").rename(src / "Rock.png")
+    run(src, out)
+    made = {p.name: p.read_bytes() for p in (out / "Rock").iterdir()}
+    (src / "Rock.png").rename(src / "rock.png")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no folder said "no longer in SOURCE"
+        (again,) = run(src, out, task=lambda job: pytest.fail(f"{job['name']} made again"))
+    assert again["renamed"] and again["renamed_from"] == "Rock"
+    assert {p.name: p.read_bytes() for p in (out / "rock").iterdir()} == {
+        k.replace("Rock", "rock"): v for k, v in made.items()}
+    assert [p.name for p in out.iterdir() if p.is_dir()] == ["rock"]  # the folder's name too, on any file system
+    (src / "rock.png").rename(src / "Rock.png")  # back, with other settings: made again, the old folder said
+    if not (out / "ROCK").exists():  # a case-sensitive file system: two folders
+        with pytest.warns(UserWarning, match="1 folder of exemplars no longer in SOURCE: rock; prune=True"):
+            run(src, out, count=2)
+        run(src, out, count=2, prune=True)
+        assert sorted(p.name for p in out.iterdir() if p.is_dir()) == ["Rock"]
 
 
 def test_a_failed_try_after_a_finished_one_does_not_make_it_again(tmp_path):

@@ -691,16 +691,25 @@ def find_orphans(outdir: Path, files: dict, names) -> list:
     ``names`` (this run's exemplars, compared without case: one folder on macOS and Windows)
     and whose folder still holds a file a ledger line of theirs lists (``files``:
     :func:`read_ledger_files`'s second part) or their :data:`RUNNING` file: exemplars removed
-    from SOURCE (or renamed there) since, sorted."""
-    current = {n.lower() for n in names}
+    from SOURCE (or renamed there) since, sorted. A name given again in another case only (``Rock``, now ``rock``) is
+    one where its folder is another than the new name's (0.62; 0.61 said none: a case-sensitive file system's)."""
+    current, given = {n.lower(): n for n in names}, set(names)
     found = []
     for name in sorted(files):
-        if name.lower() in current:
+        if name.lower() in current and (name in given or _same_folder(outdir, name, current[name.lower()])):
             continue
         folder = _own_folder(outdir, name)
         if folder is not None and (_own_files(outdir, folder, files[name]) or os.path.isfile(folder / RUNNING)):
             found.append(name)
     return found
+
+
+def _same_folder(outdir: Path, name: str, other: str) -> bool:
+    """Whether OUTDIR/``name`` and OUTDIR/``other`` are one folder (names apart in case on a file system without it)."""
+    try:
+        return os.path.samefile(outdir / name, outdir / other)
+    except OSError:  # either missing: on such a file system both are
+        return False
 
 
 def prune_orphans(outdir: Path, orphans, files: dict) -> dict:
@@ -729,12 +738,13 @@ def prune_orphans(outdir: Path, orphans, files: dict) -> dict:
 # ------------------------------------------------------------------ exemplars renamed
 def renamable(previous: dict, names) -> dict:
     """The earlier exemplars done (``previous``: :func:`read_ledger`) whose names no exemplar of this run has
-    (``names``, compared without case), by their inputs' SHA-256: where an exemplar of this run has no line of its
-    own, one of them with its input and settings may be it, renamed (:func:`renamed_from`)."""
-    current = {n.lower() for n in names}
+    (``names``), by their inputs' SHA-256: where an exemplar of this run has no line of its own, one of them with its
+    input and settings may be it, renamed (:func:`renamed_from`). A name given in another case only is one (0.62:
+    ``Rock`` to ``rock``; 0.61 compared without case, and neither moved it nor said its folder)."""
+    current = set(names)
     found = {}
     for name, rec in previous.items():
-        if name.lower() not in current and rec.get("status") == "ok" and isinstance(rec.get("sha256"), str):
+        if name not in current and rec.get("status") == "ok" and isinstance(rec.get("sha256"), str):
             found.setdefault(rec["sha256"], []).append(name)
     return found
 
@@ -772,6 +782,21 @@ def renamed_from(job: dict, previous: dict, candidates: dict, outdir: Path):
     return None
 
 
+def _rename_folder(outdir: Path, old: str, new: str) -> None:
+    """OUTDIR/``old`` renamed ``new``, names apart in case only on a file system without it, through a name of its own
+    (the folder as it was where that fails)."""
+    step = outdir / f".{old}.renamed.tmp"
+    try:
+        os.replace(outdir / old, step)
+    except OSError:
+        return
+    try:
+        os.replace(step, outdir / new)
+    except OSError:
+        with contextlib.suppress(OSError):
+            os.replace(step, outdir / old)
+
+
 def move_renamed(outdir: Path, prev: dict, old: str, job: dict):
     """Move exemplar ``old``'s files (its last line ``prev``) to ``job``'s folder under ``job``'s name, and return
     the ledger line that says them (``renamed_from``: ``old``); None where a move failed (those done are moved back:
@@ -792,6 +817,8 @@ def move_renamed(outdir: Path, prev: dict, old: str, job: dict):
         return None
     with contextlib.suppress(OSError):
         (outdir / old).rmdir()  # only when empty: files of one's own stay
+    if old.lower() == job["name"].lower() and _same_folder(outdir, old, job["name"]):  # one folder (macOS, Windows):
+        _rename_folder(outdir, old, job["name"])  # its files renamed in it; the folder's own name too
     return {**prev, "name": job["name"], "source": job["source"], "sha256": job["sha256"], "settings": job["settings"],
             "outputs": [after for _, after in pairs[:-2]], "model": pairs[-2][1], "thumbnail": pairs[-1][1],
             "renamed_from": old, "finished": time.time()}
