@@ -1142,6 +1142,8 @@ def test_prune_keeps_everything_where_most_of_the_library_would_go(tmp_path):
     assert sorted(held) == sorted(names) and len(said) == 1 and "--prune --force" in said[0], said
     assert batch.prune_held(names, previous, exemplars=3, force=True) == ({}, [])
     assert batch.prune_held(names, previous, exemplars=len(names)) == ({}, [])  # half at most: pruned
+    code, _, err, _ = invoke("batch", "src", "-o", "out", "--force", cwd=tmp_path)
+    assert code == 2 and "--force is for --prune" in err, err
 
 
 def test_a_warning_names_its_exemplar(tmp_path):
