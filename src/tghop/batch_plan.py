@@ -69,6 +69,7 @@ COMPACT_MIN = 1000
 #: The runs in a row after which an exemplar whose worker died on every try (a decoder's crash, a size beyond the
 #: memory) counts as its own failure, skipped by reruns as a bad input is (0.62: :func:`worker_deaths`).
 LOST_RUNS = 3
+
 #: In OUTDIR: the SHA-256 a run found for each exemplar's files, with their size, times and inode then
 #: (:func:`input_digest`), so that a rerun need not read unchanged files again. A cache: without it (removed,
 #: unreadable) the files are hashed, as 0.57 hashed them on every run.
