@@ -111,7 +111,8 @@ def stopped_line(plan, last, failed) -> str:
                    "local cluster before it is recorded as failed.")
 @click.option("--prune", is_flag=True,
               help="Delete the folders an earlier run made in OUTDIR for exemplars no longer in SOURCE (only the files "
-                   "its ledger lists; a folder holding other files stays). Without it they are kept and named.")
+                   "its ledger lists; a folder holding other files stays), but not those whose source folder is "
+                   "missing (see --force) or unreadable. Without it they are kept and named.")
 @click.option("--force", is_flag=True,
               help="With --prune: also the folders of exemplars whose source folder is missing (a share down keeps "
                    "them without it), however many; never those whose source folder cannot be read.")
