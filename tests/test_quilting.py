@@ -514,6 +514,25 @@ def test_gradient_energy_is_the_mean_squared_neighbour_difference(dtype):
     np.testing.assert_allclose(out, ref, rtol=1e-5)
 
 
+def test_gradient_energy_works_through_the_pool_in_chunks():
+    """0.62: POOL_CHUNK patches at a time, the same bits as each patch alone; 0.61 made two differences of the
+    whole pool (twice its memory, fresh each call: a fill's pool step waited on it)."""
+    import tracemalloc
+
+    from tghop.quilting import POOL_CHUNK, gradient_energy
+
+    pool = np.random.default_rng(4).random((8 * POOL_CHUNK + 3, 32, 32, 3), dtype=np.float32)
+    tracemalloc.start()
+    try:
+        whole = gradient_energy(pool)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < pool.nbytes / 2, (peak, pool.nbytes)
+    alone = np.concatenate([gradient_energy(pool[i : i + 1]) for i in range(0, len(pool), 97)])
+    assert np.array_equal(whole[::97], alone)
+
+
 def test_quilt_prepared_in_float32_is_the_same_canvas(brick_pool):
     from tghop.quilting import prepare_pool, quilt_prepared
 
