@@ -322,6 +322,21 @@ def stroke_across(page):
     page.mouse.up()
 
 
+def ask_fills(page, seed, count):
+    """Inpaint chosen, a hole painted across its picture, and ``count`` fills of ``seed`` asked for (not yet sent)."""
+    choose_inpaint(page)
+    stroke_across(page)
+    page.fill("#inpaint-seed", str(seed))
+    page.fill("#inpaint-count", str(count))
+
+
+def load_checkpoint(page, checkpoint):
+    """Co-occurrence chosen and ``checkpoint`` loaded, its exemplar ready for crops."""
+    chromium.choose_mode(page, "cooc")
+    page.set_input_files("#cooc-file", str(checkpoint))
+    page.wait_for_function("document.getElementById('cooc-exemplar').dataset.ready === '1'", timeout=30_000)
+
+
 def test_a_strip_of_fills_still_coming_stops_when_the_mode_or_the_model_changes(page):
     # 0.60 went on adding the fills to the strip that another mode had cleared, and once another exemplar's fit ended
     # it asked for the rest of them of that model (askPicture read the working model at each fill).
@@ -330,10 +345,7 @@ def test_a_strip_of_fills_still_coming_stops_when_the_mode_or_the_model_changes(
     chromium.fit_builtin(page, "bricks")
     bricks = page.evaluate("state.modelId")
     generate(page, 5, size=(64, 64))
-    choose_inpaint(page)
-    stroke_across(page)
-    page.fill("#inpaint-seed", "4")
-    page.fill("#inpaint-count", "3")
+    ask_fills(page, 4, 3)
     page.evaluate("""() => { window.stripImages = 0; new MutationObserver((changes) => {
       for (const c of changes) window.stripImages += [...c.addedNodes].filter((n) => n.querySelector).length;
     }).observe(document.getElementById('strip'), { childList: true }); }""")
@@ -408,10 +420,7 @@ def test_a_fill_picked_while_the_strip_still_comes_leaves_the_rest_of_the_strip_
     # A fill picked from the strip becomes the picture to paint on: 0.60 sent it as the picture of the fills still to
     # come, which were then fills of a fill (and, 0.61, not tghop inpaint --count's fill k).
     bricks_result(page, 6, (64, 64))
-    choose_inpaint(page)
-    stroke_across(page)
-    page.fill("#inpaint-seed", "9")
-    page.fill("#inpaint-count", "3")
+    ask_fills(page, 9, 3)
     bodies = []
     page.on("request", lambda r: bodies.append(r.post_data_buffer) if r.url.endswith("/inpaint") else None)
     with chromium.HeldAnswers(page, "**/api/models/*/inpaint") as answers:
@@ -433,10 +442,7 @@ def test_a_strip_of_fills_stopped_shows_the_first_fill_that_came(page):
     # Stop pressed while fill 3 of 3 came kept fills 1 and 2 in the strip but showed neither as the result, "stopped"
     # said alone (0.60): a finished strip shows fill 1.
     bricks_result(page, 7, (64, 64))
-    choose_inpaint(page)
-    stroke_across(page)
-    page.fill("#inpaint-seed", "5")
-    page.fill("#inpaint-count", "3")
+    ask_fills(page, 5, 3)
     with chromium.HeldAnswers(page, "**/api/models/*/inpaint") as answers:
         page.click("#fill")
         answers.send_next()  # fill 1
@@ -506,9 +512,7 @@ def test_the_cooc_edit_shows_its_canvas_whole_with_the_crops_at_1024x700(page, t
     # checkpoint was loaded (0.59): the artist scrolled between the crops placed on the exemplar and the canvas.
     chromium.load_empty(page)
     with window(page, 1024, 700):
-        chromium.choose_mode(page, "cooc")
-        page.set_input_files("#cooc-file", str(tiny_cooc_checkpoint))
-        page.wait_for_function("document.getElementById('cooc-exemplar').dataset.ready === '1'", timeout=30_000)
+        load_checkpoint(page, tiny_cooc_checkpoint)
         selectors = ("#cooc-message", "#cooc-crops", "#cooc-exemplar", "#cooc-edit-go", "#cooc-guide")
 
         def in_view():
@@ -594,10 +598,7 @@ def test_an_error_partway_through_a_strip_of_fills_shows_the_fills_that_came(pag
     import json
 
     bricks_result(page, 8, (64, 64))
-    choose_inpaint(page)
-    stroke_across(page)
-    page.fill("#inpaint-seed", "5")
-    page.fill("#inpaint-count", "3")
+    ask_fills(page, 5, 3)
     asked = []
 
     def second_fails(route):
@@ -630,9 +631,7 @@ def test_a_checkpoint_loaded_in_a_narrow_window_shows_where_to_place_the_crops(p
     # "click on the exemplar to place crop 1" above it, out of sight (0.61): placing crops comes first.
     chromium.load_empty(page)
     with window(page, 400, 800):
-        chromium.choose_mode(page, "cooc")
-        page.set_input_files("#cooc-file", str(tiny_cooc_checkpoint))
-        page.wait_for_function("document.getElementById('cooc-exemplar').dataset.ready === '1'", timeout=30_000)
+        load_checkpoint(page, tiny_cooc_checkpoint)
         assert page.text_content("#cooc-message").startswith("click on the exemplar to place crop 1")
         for selector in ("#cooc-message", "#cooc-crops", "#cooc-exemplar"):
             box = page.locator(selector).bounding_box()
