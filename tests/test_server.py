@@ -370,6 +370,25 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
     assert all(name.endswith(".npz") and not name.startswith(".") for name in before)
 
 
+def test_a_damaged_model_file_is_told_to_be_fitted_again_in_the_pages_words(client, fitted):
+    # 0.61 gave the command line's fix, the temporary file's path replaced by the upload's name: "tghop fit EXEMPLAR
+    # -o mine.npz", and "-o the upload" for a body without a name
+    import numpy as np
+
+    model_id, _, _ = fitted
+    with np.load(io.BytesIO(client.get(f"/api/models/{model_id}/file").content)) as data:
+        arrays = {name: data[name] for name in data.files if name != "ichm_ii.mixing"}
+    damaged = io.BytesIO()
+    np.savez(damaged, **arrays)
+    named = assert_error(client.post("/api/models/upload", files={"model": ("mine.npz", damaged.getvalue())}), 400,
+                         "mine.npz: this model file was edited, damaged or written by another program",
+                         "fit the model again from its exemplar: on this page, pick its exemplar (Pick an image...), "
+                         "or run tghop fit EXEMPLAR -o mine.npz (what is wrong: ")
+    unnamed = assert_error(client.post("/api/models/upload", content=damaged.getvalue()), 400,
+                           "the upload: this model file", "or run tghop fit EXEMPLAR -o MODEL.npz (what is wrong: ")
+    assert "-o the upload" not in unnamed and "tmp" not in named + unnamed
+
+
 def fit_with(client, **fields):
     """POST /api/models of builtin:bricks with these form fields."""
     return client.post("/api/models", files={"builtin": (None, "bricks"), **{k: (None, v) for k, v in fields.items()}})

@@ -601,7 +601,8 @@ def _unusable(label, meta, detail) -> ModelFileError:
     """The one message for a model file whose contents this tghop cannot use (0.62): the file, what happened to it
     (a newer tghop's; else edited, damaged or another program's), the fix (the command that makes it again), and only
     then what was found (``detail``: the array or metadata key, the internal names a user cannot act on). 0.61 put
-    the internal names first ("invalid tghop model (...)", "material_patch.patch.directions is not part of ...")."""
+    the internal names first ("invalid tghop model (...)", "material_patch.patch.directions is not part of ...").
+    The error's ``fix`` is that command as the message gives it, ``material`` whether the file is a material's."""
     import shlex
 
     material = isinstance(meta, dict) and "material" in meta
@@ -611,8 +612,10 @@ def _unusable(label, meta, detail) -> ModelFileError:
     what = (f"made by tghop {newer}, newer than this {__version__}, and this one cannot use it; upgrade tghop, or "
             if newer else "this model file was edited, damaged or written by another program, so tghop cannot use "
             "it; ")
-    return ModelFileError(f"{label}: {what}fit the {'material' if material else 'model'} again from its "
-                          f"{'maps' if material else 'exemplar'}: {fix} (what is wrong: {detail})")
+    error = ModelFileError(f"{label}: {what}fit the {'material' if material else 'model'} again from its "
+                           f"{'maps' if material else 'exemplar'}: {fix} (what is wrong: {detail})")
+    error.fix, error.material = fix, material  # for a caller whose user fixes it otherwise (the web page, 0.62)
+    return error
 
 
 def _metadata_problem(exc) -> str:

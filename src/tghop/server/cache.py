@@ -171,11 +171,13 @@ class ModelCache:
                 self._summaries.pop(model_id, None)
         return removed
 
-    def store(self, content: bytes, filename: str, *, hint: str, wanted=None) -> str:
+    def store(self, content: bytes, filename: str, *, hint: str, wanted=None, refit=None) -> str:
         """Keep uploaded bytes under their SHA-256 once this cache's loader accepts them: the
         id. Not loadable: 400 (no room: 413), ``hint`` saying what to send; nothing is left
         in the folder either way. ``wanted()``, asked once the file is read and before it is kept: False
-        (its client has gone) drops it, 499 (:meth:`tghop.server.core.Server.still_wanted`)."""
+        (its client has gone) drops it, 499 (:meth:`tghop.server.core.Server.still_wanted`). ``refit(error)``:
+        the words that stand for the command line's fix of a file the loader cannot use (a loader error's
+        ``fix``, :func:`tghop.modelfile.load_model`'s "tghop fit EXEMPLAR -o PATH"), the page's own (0.62)."""
         if not content:
             raise RequestError(400, f"{filename} is empty; {hint}")
         check_archive(content, filename, self.what)  # a decompression bomb: refused before it is read
@@ -198,7 +200,10 @@ class ModelCache:
             try:
                 loaded = self._read_noting(key, tmp)
             except TGHopError as exc:
-                raise RequestError(400, str(exc).replace(tmp, filename)) from None
+                fix, said = getattr(exc, "fix", None), str(exc)
+                if refit is not None and fix:
+                    said = said.replace(fix, refit(exc))
+                raise RequestError(400, said.replace(tmp, filename)) from None
             except MemoryError:
                 raise RequestError(413, f"{filename}: not enough memory to read this {self.what}") from None
             if wanted is not None and not wanted():

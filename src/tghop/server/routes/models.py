@@ -112,7 +112,7 @@ def store_upload(server, content: bytes, filename: str) -> tuple:
 
     try:
         model_id = server.cache.store(content, filename, hint="send a model file written by 'tghop fit'",
-                                      wanted=server.still_wanted)
+                                      wanted=server.still_wanted, refit=lambda exc: page_refit(exc, filename))
     except RequestError as exc:  # the loader's advice for an image or a checkpoint is a command line's
         if exc.status == 400 and is_image(io.BytesIO(content)):
             raise RequestError(400, f"{filename} is an image, not a model file; to fit a model from it, pick it "
@@ -126,6 +126,19 @@ def store_upload(server, content: bytes, filename: str) -> tuple:
     deep = (getattr(model, "exemplar_depth_", None) or 8) > 8  # a material's maps keep their depths: none
     read = [note_line(line) for line in server.cache.notes(model_id, filename) or []]
     return model_id, read + ([depth_note(filename, model=True)] if deep else [])
+
+
+def page_refit(exc, filename: str) -> str:
+    """How the page's user fits a model file again that tghop cannot use (0.62; 0.61 gave the command line's
+    "tghop fit EXEMPLAR -o NAME", "-o the upload" for an upload without a name): on the page from its exemplar
+    (a material: its albedo and maps), or with that command naming the file as it was uploaded."""
+    import shlex
+
+    out = "MODEL.npz" if filename == "the upload" else shlex.quote(filename)
+    if exc.material:
+        return (f"on this page, pick its albedo (Pick an image...) with its maps (Add maps...), or run "
+                f"tghop fit ALBEDO --maps MAP ... -o {out}")
+    return f"on this page, pick its exemplar (Pick an image...), or run tghop fit EXEMPLAR -o {out}"
 
 
 async def upload_model(server, request):
