@@ -673,9 +673,9 @@ def test_cli_patch_refines_painted_materials_albedos(material, second, tmp_path,
         assert all(np.array_equal(out["0"][k][half], out["3"][k][half]) for k in out["3"] if k != ".png")
     res = CliRunner().invoke(main, ["synth", "mat.npz", "old.npz", "-o", "r.png", "--size", "48x64", "-q",
                                     "--quality", "best"])
-    assert res.exit_code == 1 and "Traceback" not in res.output, res.output
-    assert "SOURCE 2 (old.npz) is a material without patch statistics of its albedo for --patch-refine or " \
-           "--quality best" in res.output, res.output
+    assert res.exit_code == 2 and "Traceback" not in res.output, res.output  # a usage error, as synth's (0.61: 1)
+    assert "--quality best does not apply to SOURCE 2 (old.npz) (it has no patch statistics: fitted by tghop 0.58 " \
+           "or older, or with --patch-levels 0); fit it again, or drop it" in res.output, res.output
     assert not list(tmp_path.glob("r*.png"))
 
 

@@ -248,19 +248,17 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     _check_channels(output, depth, read)
     _warn_deep(sources, read, "SOURCE", output, depth)
     if generation["patch_refine"] and hasattr(read[0], "names_"):  # each albedo by its own statistics (0.60)
+        from .options import refuse_patch_refine_of_saved
+
         for i, (spec, source) in enumerate(zip(sources, read), start=1):
             if source.albedo_patches() is None:
-                raise TGHopError(f"SOURCE {i} ({spec}) is a material without patch statistics of its albedo for "
-                                 "--patch-refine or --quality best (fitted by tghop 0.58 or older, or with "
-                                 "--patch-levels 0); fit it again with 'tghop fit'")
+                refuse_patch_refine_of_saved(ctx, f"SOURCE {i} ({spec})", material=True)
     elif generation["patch_refine"]:  # before any fit
-        from .options import refuse_patch_refine_without_statistics
+        from .options import refuse_patch_refine_of_saved, refuse_patch_refine_without_statistics
 
         for i, (spec, source) in enumerate(zip(sources, read), start=1):
             if not isinstance(source, np.ndarray) and source.patches_ is None:
-                raise TGHopError(f"SOURCE {i} ({spec}) holds no patch statistics for --patch-refine or --quality "
-                                 "best (fitted with --patch-levels 0, or by tghop 0.14 or older); fit it again "
-                                 "with 'tghop fit'")
+                refuse_patch_refine_of_saved(ctx, f"SOURCE {i} ({spec})", material=False)
         if any(isinstance(source, np.ndarray) for source in read):
             refuse_patch_refine_without_statistics(ctx, generation, build_model(dict(options)))
 

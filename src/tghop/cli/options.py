@@ -267,3 +267,18 @@ def refuse_patch_refine_without_statistics(ctx, generation, planned):
     why = "--patch-levels 0" if given_options(ctx, ["patch_levels"]) else "--paper (its --patch-levels 0)"
     raise click.UsageError(f"{asked} needs the patch statistics that {why} leaves out of the fit; give "
                            f"--patch-levels {BY_NAME['patch_levels'].default} as well, or drop {asked}")
+
+
+def refuse_patch_refine_of_saved(ctx, what: str, material: bool):
+    """Refuse a patch refinement asked for (``--patch-refine``, ``--quality best``, ``--patch-stride``: the
+    options typed) of a saved model without patch statistics (``what``: how it is named, "this model", "SOURCE 2
+    (old.npz)"): a usage error of those options with this model, one wording and exit status 2 for a texture
+    and a material alike (0.62; 0.61 exited 1 for a texture, in other words)."""
+    typed = (["--quality best"] if ctx.params.get("quality") == "best" else []) + given_options(
+        ctx, ["patch_refine", "patch_stride"])
+    typed = typed or ["--patch-refine"]
+    several = len(typed) > 1
+    older = "0.58" if material else "0.14"
+    raise click.UsageError(f"{' and '.join(typed)} {'do' if several else 'does'} not apply to {what} (it has no "
+                           f"patch statistics: fitted by tghop {older} or older, or with --patch-levels 0); fit it "
+                           f"again, or drop {'them' if several else 'it'}")

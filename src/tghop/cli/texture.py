@@ -21,7 +21,7 @@ from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
                       depth_option, generation_options, generation_params, given_options, model_options,
-                      refuse_patch_refine_without_statistics)
+                      refuse_patch_refine_of_saved, refuse_patch_refine_without_statistics)
 
 __all__ = ["fit", "synth", "patches", "clusters", "info"]
 
@@ -397,13 +397,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
             # refused here by the options typed, not the library's keyword: a material fitted by 0.58 or with
             # --patch-levels 0 (0.59 patch-refines a material's albedo)
             if (generation["patch_refine"] or stride) and model.albedo_patches() is None:
-                typed = (["--quality best"] if ctx.params.get("quality") == "best" else []) + given_options(
-                    ctx, ["patch_refine", "patch_stride"])
-                typed = typed or ["--patch-refine"]
-                several = len(typed) > 1
-                raise click.UsageError(f"{' and '.join(typed)} {'do' if several else 'does'} not apply to this "
-                                       "material (it has no patch statistics: fitted by tghop 0.58 or older, or with "
-                                       f"--patch-levels 0); fit it again, or drop {'them' if several else 'it'}")
+                refuse_patch_refine_of_saved(ctx, "this material", material=True)
             _synth_material(model, output, outputs, size, depth, rng=seed, progress=progress, generation=generation,
                             source=source, stages=stages)
             return None, True, []
@@ -411,8 +405,7 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
         if not depth and (getattr(model, "exemplar_depth_", None) or 8) > 8:  # as from the exemplar (fit_exemplar)
             warn_written_with_8("the exemplar of SOURCE", source, output)
         if generation["patch_refine"] and model.patches_ is None:
-            raise TGHopError(f"{source} holds no patch statistics for --patch-refine or --quality best "
-                             "(fitted with --patch-levels 0, or by tghop 0.14 or older); fit it again with 'tghop fit'")
+            refuse_patch_refine_of_saved(ctx, "this model", material=False)
     else:
         from ..quilting import block_count
 
