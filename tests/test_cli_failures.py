@@ -525,6 +525,27 @@ def test_an_output_that_is_a_folder_without_extension_is_called_a_folder(folder)
     assert list((folder / "outputs").iterdir()) == []
 
 
+def test_an_existing_folder_where_a_file_goes_is_a_usage_error(folder, tmp_path):
+    # -o's bad value, as an unknown extension is: exit status 2 (0.61: 1), whatever the folder's name; a file
+    # the command names from -o's (--count's, --stages') is told to be moved, not to be given a name in it
+    for name in ("out.png", "out.npz", "o_2.png", "o_quilt.png"):
+        (tmp_path / name).mkdir()
+    for args, words in ((["synth", folder / "model.npz", "-o", "out.png"], "out.png is a folder; give a file name for "
+                                                                           "the image in it (e.g. out.png"),
+                        (["fit", folder / "bricks.png", "-o", "out.npz"], "-o out.npz is a folder; give a model file "
+                                                                          "name in it (e.g. out.npz"),
+                        (["synth", folder / "model.npz", "-o", "o.png", "--count", "2"],
+                         "o_2.png is a folder, where this command writes a file of that name (named from -o's); "
+                         "move or remove that folder, or give -o another name"),
+                        (["synth", folder / "model.npz", "-o", "o.png", "--stages"], "o_quilt.png is a folder, "
+                                                                                      "where this command writes")):
+        code, _, err, exc = invoke(*args, "--size", "40", "-q", cwd=tmp_path) if args[0] == "synth" else \
+            invoke(*args, "-q", cwd=tmp_path)
+        assert_one_line(code, err, words, exception=exc)
+        assert code == 2, err
+    assert all(not any(p.iterdir()) for p in tmp_path.iterdir())
+
+
 @pytest.mark.parametrize("args", [["info", "model.npz"], ["info", "model.npz", "--json"],
                                   ["evaluate", "bricks.png", "bricks.png", "--metrics", "swd", "-q"],
                                   ["synth", "model.npz", "-o", "-", "--size", "40", "-q"],

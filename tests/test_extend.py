@@ -222,8 +222,11 @@ def test_cli_keeps_the_alpha_channel_and_makes_the_new_area_opaque(files, cells)
 
 
 @pytest.mark.parametrize("args, words, status", [
-    (["--size", "64x200"], ["the size 64x200 is smaller than the image (96x96) in height"], 1),
-    (["--size", "96x96"], ["nothing to extend"], 1),
+    # --size's bad value: a usage error, 2, in the options' words (0.61: 1, "the size 64x200 ... the image")
+    (["--size", "64x200"], ["--size 64x200 is smaller than IMAGE", "cells.png (96x96) in height; give --size at "
+                                                                   "least 96x96"], 2),
+    (["--size", "96x96"], ["--size 96x96 is IMAGE", "cells.png's own size, so there is nothing to extend; give a "
+                                                    "larger --size"], 2),
     (["--size", "128", "--anchor", "middle"], ["--anchor", "middle"], 2),
     # a usage error, 2 (it exited 1, as a bad file does)
     (["--size", "128", "--scale", "0.5"], ["--scale applies to an exemplar given as --source", "extend --help"], 2),

@@ -501,12 +501,20 @@ def check_stdout(what: str):
                          "or redirect it to a file (> FILE)")
 
 
-def check_output(path: str, allow_stdout=False, depth=None):
+def check_output(path: str, allow_stdout=False, depth=None, *, made=False):
     """Refuse, before any work, an image output ``path`` (``-o``) that cannot be written: stdout
     where the command writes none or to a terminal, an extension tghop does not write, a folder;
     with ``depth`` (``--depth``), a depth the output's format cannot hold (usage errors: two options
-    that clash, or -o's bad value)."""
+    that clash, or -o's bad value; a folder too, 0.62: 0.61 exited 1). ``made``: a file the command names
+    from -o's (--count's, --stages', a material's maps), whose folder is told to be moved."""
     from ..imageio import check_depth, check_output_path, output_format
+
+    if path != "-" and os.path.isdir(path):
+        if made:
+            raise click.UsageError(f"{path} is a folder, where this command writes a file of that name (named from "
+                                   "-o's); move or remove that folder, or give -o another name")
+        raise click.UsageError(f"{path} is a folder; give a file name for the image in it "
+                               f"(e.g. {os.path.join(path, 'texture.png')})")
 
     if path == "-" and not allow_stdout:
         raise click.UsageError("this command cannot write to stdout; give a file name with -o")
@@ -518,8 +526,6 @@ def check_output(path: str, allow_stdout=False, depth=None):
     try:
         output_format(path)
     except InvalidImageError as exc:  # an extension tghop does not write: -o's bad value, a usage error
-        if os.path.isdir(path):  # a folder: as one with an image's extension (check_output_path), not usage
-            raise
         raise click.UsageError(str(exc)) from None
     if path != "-":
         check_output_path(path)
@@ -600,9 +606,9 @@ def check_model_output(path: str, label: str = "-o", *, suffix: str = ".npz", wh
         raise ModelFileError(f"{label}: the {what}'s file name is empty; give one, e.g. {label} {what}{suffix}")
     p = Path(path)
     ext = p.suffix.lower()
-    if ext != suffix and p.is_dir():  # -o models/: "name it models.npz" wrote beside the folder
-        raise ModelFileError(f"{label} {path} is a folder; give a {what} file name in it (e.g. "
-                             f"{os.path.join(path, what + suffix)})")
+    if p.is_dir():  # -o models/: "name it models.npz" wrote beside the folder; a usage error (0.62; 0.61: exit 1)
+        raise click.UsageError(f"{label} {path} is a folder; give a {what} file name in it (e.g. "
+                               f"{os.path.join(path, what + suffix)})")
     if ext != suffix:
         fixed = p.with_suffix(suffix) if ext in READ_SUFFIXES else p.with_name(p.name + suffix)
         why = (f"{ext} is an image extension, but {label} writes a {what}" if ext in READ_SUFFIXES
@@ -810,9 +816,9 @@ def write_materials(material, output, outputs, size, depth, make, inputs, progre
     steps_planned = [("--stages", path) for steps in staged for plan in steps.values() for _, path, _ in plan]
     for plan in plans:
         for _, path, _ in plan:
-            check_output(path)
+            check_output(path, made=path != output)
     for _, path in steps_planned:
-        check_output(path)
+        check_output(path, made=True)
     check_outputs([("-o", path) for plan in plans for _, path, _ in plan] + steps_planned, inputs)
     warn_lost_depth([(name, own, d) for (name, _, d), own in zip(plans[0], material.depths_)], output, depth, "map")
     first = []  # the first set's step files written (the albedo's)

@@ -208,7 +208,7 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     outputs = count_outputs(output, count)
     staged = [stage_paths(path, guided_stages(len(sources))) for path in outputs] if stages else []
     for path in (outputs if count > 1 else []) + [p for paths in staged for p in paths.values()]:
-        check_output(path)
+        check_output(path, made=True)
     check_outputs([("-o", path) for path in outputs] + [("--stages", p) for paths in staged for p in paths.values()],
                   [(f"SOURCE {i}", s) for i, s in enumerate(sources, start=1)] + [("--guide", guide)])
     for spec in sources:  # a SOURCE that is no file is named first (0.58 counted the guide's levels against it)
@@ -425,7 +425,7 @@ def morph(source_a, source_b, output, size, grid, seed, stations, stages, depth,
         check_depth(output, depth or 8)
         staged = stage_paths(output, guided_stages(2)) if stages else {}
         for path in staged.values():
-            check_output(path)
+            check_output(path, made=True)
         check_outputs([("-o", output)] + [("--stages", path) for path in staged.values()],
                       [("A", source_a), ("B", source_b)])
         _check_grid(size, grid)

@@ -165,7 +165,8 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
             return
         picture, alpha, depth, source_is_model, _ = _open(image, outputs, source, scale, depth, others=[],
                                                           staged=staged)
-        canvas, hole, _ = expand_canvas(picture, size, anchor=anchor.lower())  # refuses a size that is not larger
+        _check_larger(picture, size, image)
+        canvas, hole, _ = expand_canvas(picture, size, anchor=anchor.lower())
         _warn_untileable(tile, picture.shape, size, image)
         if alpha is not None:
             alpha = expand_canvas(alpha, size, anchor=anchor.lower())[0]
@@ -241,10 +242,10 @@ def _open(image, outputs, source, scale, depth, *, others, maps=False, staged=()
     from ..inpaint import split_alpha
 
     output = outputs[0]
-    check_output(output, allow_stdout=True, depth=depth)
+    check_output(output, allow_stdout=True, depth=depth, made=len(outputs) > 1)
     steps = [path for paths in staged for path in paths.values()]  # --stages' files
     for path in outputs[1:] + steps:  # --count's numbered files, each before any work
-        check_output(path)
+        check_output(path, made=True)
     check_outputs([("-o", path) for path in outputs] + [("--stages", path) for path in steps],
                   [("IMAGE", image)] + others + [("--source", source)])
     if is_model_file(image):
@@ -277,6 +278,19 @@ def _warn_most(hole, mask, image):
     if 0.5 < share < 1:
         warnings.warn(f"MASK {mask}: its white pixels, the hole that is filled, are {share:.0%} of IMAGE {image}; "
                       "if you painted the part to keep white, invert the mask")
+
+
+def _check_larger(picture, size, image):
+    """Refuse extend's --size where it is not larger than IMAGE: --size's bad value, a usage error (0.62; 0.61 exited
+    1, in the library's words, :func:`tghop.canvas.expand_canvas`)."""
+    (h, w), (hh, ww) = picture.shape[:2], size
+    if hh < h or ww < w:
+        raise click.UsageError(f"--size {hh}x{ww} is smaller than IMAGE {image} ({h}x{w}) in "
+                               f"{'height' if hh < h else 'width'}; give --size at least {h}x{w} (crop the image "
+                               "first to make it smaller)")
+    if (hh, ww) == (h, w):
+        raise click.UsageError(f"--size {hh}x{ww} is IMAGE {image}'s own size, so there is nothing to extend; give a "
+                               "larger --size")
 
 
 def _model(picture, hole, image, source, source_is_model, scale, seed, progress, *, too_little, fix, grown=None):
@@ -482,17 +496,18 @@ def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, 
         for name, out in zip(names, map_files(out_albedo, ["albedo", *names])[1:]):
             plan.append((name, out, check_depth(out, depth or deepest(out, depths[name]))))
         for _, out, _ in plan[1:]:
-            check_output(out)
+            check_output(out, made=True)
         plans.append(plan)
     staged = [material_stage_files(out, plan, FILL_STAGES) for out, plan in zip(outputs, plans)] if stages else []
     steps_planned = [("--stages", out) for steps in staged for plan in steps.values() for _, out, _ in plan]
     for _, out in steps_planned:
-        check_output(out)
+        check_output(out, made=True)
     check_outputs([("-o", out) for plan in plans for _, out, _ in plan] + steps_planned,
                   [("IMAGE", image), ("--source", source)] + others)
     own = {"albedo": image_depth, **depths}
     warn_lost_depth([(name, own[name], d) for name, _, d in plans[0]], output, depth, "map")
     if grow is not None:
+        _check_larger(picture, grow[0], image)
         canvas, hole, _ = expand_canvas(picture, grow[0], anchor=grow[1])
         _warn_untileable(tile, picture.shape, grow[0], image)
         images = {"albedo": canvas, **{k: expand_canvas(v, grow[0], anchor=grow[1])[0] for k, v in maps.items()}}

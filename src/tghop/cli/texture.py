@@ -200,7 +200,7 @@ def patches(model_file, n, output, seed, stages, quiet):
         if stages:  # checked with the grid, before anything is generated or written
             path = Path(output)
             stage_path = str(path.with_name(f"{path.stem}_stages{path.suffix}"))
-            check_output(stage_path)
+            check_output(stage_path, made=True)
         check_outputs([("-o", output), ("--stages", stage_path)], [("MODEL", model_file)])
         model = load_model(model_file)
         if stages:
@@ -324,7 +324,7 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
         # The files written are checked (0.61): with --count above 1 the numbered ones, not -o's own name (a
         # folder named out.png refused out_1.png, out_2.png), as inpaint and extend check them; -o - refused.
         first = count_outputs(output, count)[0]
-        check_output(first, allow_stdout=True, depth=depth)
+        check_output(first, allow_stdout=True, depth=depth, made=first != output)
         check_depth(first, depth or 8)
         if stages and output == "-":  # several SOURCEs' steps are OUTPUT_regions, _layers, _join (0.61)
             first_step = "OUTPUT_regions" if len(sources) > 1 or guide is not None else "OUTPUT_quilt"
@@ -383,9 +383,9 @@ def _synth_one(ctx, source, output, size, count, seed, save_model, exclude, down
     staged = [stage_paths(path) for path in outputs] if stages else []
     if count > 1:
         for path in outputs:
-            check_output(path)
+            check_output(path, made=True)
     for path in (p for paths in staged for p in paths.values()):
-        check_output(path)
+        check_output(path, made=True)
     if save_model is not None and not from_model:
         check_model_output(save_model, "--save-model")
     check_outputs([("-o", path) for path in outputs] + [("--stages", p) for paths in staged for p in paths.values()]
