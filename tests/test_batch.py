@@ -316,6 +316,25 @@ def test_outdirs_own_files_are_checked_before_any_work(tmp_path):
     assert all(r["status"] == "ok" for r in run(src / "sub", out, workers=1, contact_sheet=False))
 
 
+def test_an_outdir_that_cannot_be_made_is_told_what_to_do(tmp_path, monkeypatch):
+    # 0.61: "OUTDIR: cannot create the output folder (Read-only file system)", and no fix
+    import errno
+
+    src = make_folder(tmp_path / "src", bad=False)
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(TGHopError, match=r"file.out: cannot create the output folder \(.*\); a file stands where "
+                                         "OUTDIR or a folder above it goes; give another OUTDIR"):
+        run(src, tmp_path / "file" / "out", workers=1, task=_no_work)
+
+    def read_only(self, *args, **kwargs):
+        raise OSError(errno.EROFS, "Read-only file system")
+
+    monkeypatch.setattr(Path, "mkdir", read_only)
+    with pytest.raises(TGHopError, match=r"ro: cannot create the output folder \(Read-only file system\); give an "
+                                         "OUTDIR on a disk and in a folder you can write to"):
+        run(src, tmp_path / "ro", workers=1, task=_no_work)
+
+
 def test_an_immutable_ledger_is_found_before_the_first_exemplar_is_redone(tmp_path):
     src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
     (first, _) = run(src, out, workers=1)

@@ -358,8 +358,9 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
             check_cluster(client)  # connect's checks of the workers (0.59: a given client's too)
         try:
             outdir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise TGHopError(f"{outdir}: cannot create the output folder ({exc.strerror or exc})") from None
+        except OSError as exc:  # 0.61 named no fix
+            raise TGHopError(f"{outdir}: cannot create the output folder ({exc.strerror or exc}); "
+                             f"{_outdir_fix(exc)}") from None
         from .imageio import check_output_path
 
         check_output_path(outdir / LEDGER, what="ledger", error=TGHopError)  # a file can be made in OUTDIR
@@ -593,3 +594,14 @@ def write_contact_sheet(outdir, records, total=None) -> Path:
     """``OUTDIR/index.html`` of a batch (:func:`tghop.contact_sheet.write_contact_sheet`,
     linking the ledger)."""
     return _write_sheet(outdir, records, total=total, ledger=LEDGER)
+
+
+def _outdir_fix(exc: OSError) -> str:
+    """What to do about OUTDIR that cannot be made (``exc``: why), in one clause."""
+    import errno
+
+    if exc.errno == errno.ENOSPC:
+        return "free some space on that disk, or give an OUTDIR on another one"
+    if exc.errno in (errno.EEXIST, errno.ENOTDIR):
+        return "a file stands where OUTDIR or a folder above it goes; give another OUTDIR"
+    return "give an OUTDIR on a disk and in a folder you can write to (e.g. under your home folder)"
