@@ -56,7 +56,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import check_int, check_not_path
-from ._errors import TGHopError, check_progress
+from ._errors import TGHopError, check_progress, warn
 from ._estimator import check_is_fitted, check_keywords, check_rng
 from ._images import checked_image
 from ._progress import report
@@ -399,7 +399,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         ``tghop inpaint`` keeps a file's (0.59; 0.58 refused such an array).
     mask : array_like, shape (H, W) (or (H, W, C))
         The hole: True, or values > 0.5 (uint8: > 127, uint16: > 32767). Any shape, up to the
-        whole image.
+        whole image. No hole at all: the image as it is, with a UserWarning (0.62; 0.61 said nothing).
     rng : int or numpy.random.Generator, optional
         Same seed, same result (on the same machine).
     tile : bool
@@ -503,7 +503,9 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
             whole = _into(original, hole, img[hole])
             stages[name] = whole.astype(np.float32) / np.float32(LEVELS.get(whole.dtype, 1))
 
-    if not hole.any():
+    if not hole.any():  # as the command line and the page refuse it, said (0.62; 0.61 returned it without a word)
+        warn("inpaint: the mask has no hole (no pixel True, or white), so the image is returned as it is; mark the "
+             "pixels to fill True (white in a mask image)")
         out = _into(original, hole, np.zeros((0, work.shape[2])))
         return (out, stages) if return_stages else out
 
