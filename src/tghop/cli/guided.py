@@ -187,9 +187,11 @@ def _tell_colours(path, guide, labels, sources):
 
 def synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model, exclude, downscale,
                   progress, generation, options, depth=None, stages=False):
-    """``tghop synth`` with several SOURCEs or a --guide (inside the command's user_errors); ``stages``: --stages,
-    OUT_regions, OUT_layers and OUT_join beside each image (0.61; materials': OUT_layers_<map>, ... too). Returns
-    the outputs (None for materials, which say what they wrote), the size and the first output's step files."""
+    """``tghop synth`` with several SOURCEs or a --guide, as its only caller calls it (inside the command's
+    user_errors; 0.62 dropped a check of one SOURCE without --guide, "a remix needs at least two SOURCEs", that
+    could not be met); ``stages``: --stages, OUT_regions, OUT_layers and OUT_join beside each image (0.61;
+    materials': OUT_layers_<map>, ... too). Returns the outputs (None for materials, which say what they
+    wrote), the size and the first output's step files."""
     import numpy as np
 
     from ..guided import guide_labels, synthesize_guided
@@ -202,8 +204,6 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     if exclude:
         raise click.UsageError("--exclude takes one exemplar; fit each with 'tghop fit --exclude' and give the "
                                ".npz files")
-    if guide is None and len(sources) < 2:
-        raise TGHopError("a remix needs at least two SOURCEs (or give --guide)")
     size_given = ctx.get_parameter_source("size").name == "COMMANDLINE"
     outputs = count_outputs(output, count)
     staged = [stage_paths(path, guided_stages(len(sources))) for path in outputs] if stages else []
