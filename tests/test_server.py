@@ -918,7 +918,9 @@ def test_guided_and_morph_bad_inputs_get_one_line_and_their_status(client, fitte
     save_model(TGHop(patch_size=16, n_channels=(9, 22), gamma=0.01, n_clusters=8, n_codewords=40, stride=4,
                      rng=0).fit(data.bricks(64, rng=1)), tmp_path / "p16.npz")
     small = post("/api/models/upload", content=(tmp_path / "p16.npz").read_bytes()).json()["id"]
-    words = "fit them with the same patch_size (a field of POST /api/models)"
+    # 0.61: "fit them with the same patch_size (a field of POST /api/models)", which the page has not
+    words = ("; give models of one patch size: fit both on this page (its fits have 32x32 patches; the API's fit "
+             "field patch_size sets another)")
     for response in (post(morph, json={"a": two[0], "b": small, "size": [32, 64]}),
                      post(guided, json={"models": [two[0], small], "size": [32, 32]})):
         message = assert_error(response, 422, "has 16x16 patches but", "has 32x32", words)

@@ -11,10 +11,14 @@ import secrets
 import time
 
 from ..._errors import TGHopError
+from ...settings import BY_NAME
 from .. import materials
 from ..core import json_response
 from ..requests import RequestError, page_words, parse_generation, parse_guide_labels, parse_guided, parse_morph
 from ..uploads import MAX_UPLOAD_BYTES, json_body, read_image
+
+#: The patch size of the page's fits (it has no field for another).
+DEFAULT_PATCH = BY_NAME["patch_size"].default
 
 __all__ = ["header_text", "check_patch_refine", "model_png", "png_response", "generate", "several_png", "same_patches",
            "guided_png", "guided", "morph_png", "morph", "read_guide", "guide_label_map", "guide_labels_route",
@@ -140,14 +144,16 @@ def several_png(server, make, models, seed) -> tuple:
 
 
 def same_patches(models, names) -> None:
-    """Models to combine have one patch size, or 422 naming them as the request does and
-    the fit field (the library's words name the command line's --patch-size)."""
+    """Models to combine have one patch size, or 422 naming them as the request does, and the fix on the page (its
+    fits' patch size) and the API's fit field (the library's words name the command line's --patch-size; 0.61 named
+    the API's field alone, "fit them with the same patch_size (a field of POST /api/models)")."""
     p = materials.patch_size(models[0])
     for name, model in zip(names[1:], models[1:]):
         q = materials.patch_size(model)
         if q != p:
-            raise RequestError(422, f"{name} has {q}x{q} patches but {names[0]} has "
-                                    f"{p}x{p}; fit them with the same patch_size (a field of POST /api/models)")
+            raise RequestError(422, f"{name} has {q}x{q} patches but {names[0]} has {p}x{p}; give models of one "
+                                    f"patch size: fit both on this page (its fits have {DEFAULT_PATCH}x{DEFAULT_PATCH} "
+                                    "patches; the API's fit field patch_size sets another)")
 
 
 def read_guide(guide: bytes, n_models: int, size, **words) -> tuple:
