@@ -335,7 +335,9 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
                            "(the API: POST it to /api/models as the file field 'image')")
     assert "tghop fit" not in message  # a command line's advice means nothing to a web client
     assert_error(post("/api/models/upload", content=exemplar_png(40)), 400, "the upload is an image", "/api/models")
-    assert_error(post("/api/models/upload", content=b""), 400, "the upload is empty")
+    # 0.62: the page's fix first ("send a model file written by 'tghop fit'" before)
+    assert_error(post("/api/models/upload", content=b""), 400, "the upload is empty; pick a model file downloaded "
+                 "from this page (Download model) or written by tghop fit")
     # 422: settings out of range, sizes over the output limit
     assert_error(post("/api/models", files={"builtin": (None, "bricks"), "n_clusters": (None, "0")}), 422,
                  "n_clusters must be")
@@ -357,8 +359,11 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
                  "the body gives the key 'size' twice; send each key once")
     # 404: no such model, job, or path; never a file outside the static folder and the cache
     missing = "0" * 64
-    assert_error(client.get(f"/api/models/{missing}"), 404, "no model")
-    assert_error(client.get(f"/api/models/{missing}/file"), 404, "no model")
+    # 0.62: what may have happened and the page's fix (0.61: the whole id, "fit one with POST /api/models")
+    gone = (f"no model {missing[:12]}... on the server (never made here, or its fit has not ended, or its cache "
+            "dropped it); pick its exemplar again to fit it (the API: POST /api/models)")
+    assert_error(client.get(f"/api/models/{missing}"), 404, gone)
+    assert_error(client.get(f"/api/models/{missing}/file"), 404, gone)
     assert_error(post(f"/api/models/{missing}/images", json={"size": [8, 8]}), 404, "no model")
     assert_error(client.get("/api/models/..%2F..%2Fetc%2Fpasswd"), 404)
     assert_error(client.get("/api/jobs/nope"), 404, "no job")

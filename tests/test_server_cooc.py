@@ -297,7 +297,9 @@ def test_bad_checkpoints_get_400_and_leave_nothing(client, live_server, tmp_path
     assert_error(client.post("/api/cooc", files={"checkpoint": ("evil.pt", evil.getvalue())}), 400,
                  "not a tghop co-occurrence checkpoint")
     assert not marker.exists()  # weights_only: the pickle's call never ran
-    assert_error(client.post("/api/cooc", files={"checkpoint": ("empty.pt", b"")}), 400, "empty.pt is empty")
+    assert_error(client.post("/api/cooc", files={"checkpoint": ("empty.pt", b"")}), 400,  # 0.62: the page's fix first
+                 "empty.pt is empty; pick a checkpoint downloaded from this page (Download checkpoint) or written by "
+                 "tghop cooc train")
     # A texture model's file, loaded as a checkpoint on the page: where it goes there, not the library's words.
     from tghop import TGHop, data
     from tghop.modelfile import save_model
@@ -315,7 +317,8 @@ def test_bad_checkpoints_get_400_and_leave_nothing(client, live_server, tmp_path
 @needs_torch
 def test_bad_requests_get_one_line_and_their_status(client, cid):
     morph, edit = f"/api/cooc/{cid}/morph", f"/api/cooc/{cid}/edit"
-    assert_error(client.get("/api/cooc/" + "0" * 64), 404, "no co-occurrence checkpoint", "POST /api/cooc")
+    assert_error(client.get("/api/cooc/" + "0" * 64), 404, "no co-occurrence checkpoint", "POST /api/cooc",
+                 'load it again with "Load a checkpoint" in Co-occurrence mode')
     assert_error(client.post("/api/cooc/../../etc/morph", json={}), 404)
     assert_error(client.post(f"/api/cooc/{'ab' * 32}/morph", json={"a": [0, 0], "b": [0, 0]}), 404)
     assert_error(client.post(morph, json={"a": [60, 0], "b": [0, 0]}), 422, "32x32 crop at (60, 0)", "64x64 exemplar")
@@ -439,7 +442,7 @@ def test_a_checkpoints_summary_is_kept_as_a_models_is(tmp_path, checkpoint):
                 assert again.status_code == 200 and again.json() == first.json(), again.text
             assert len(reads) == 1, reads  # read once, for the first summary
             (tmp_path / "cooc" / f"{cid}.pt").unlink()
-            assert_error(c.get(f"/api/cooc/{cid}"), 404, f"no co-occurrence checkpoint {cid}")
+            assert_error(c.get(f"/api/cooc/{cid}"), 404, f"no co-occurrence checkpoint {cid[:12]}... on the server")
     finally:
         server.stop()
     assert state.decoding.holding == 0 and state.decoding.waiting == 0

@@ -31,6 +31,9 @@ _LOADED = 4
 _SUMMARIES = 256
 #: Where a file's path stood in a warning of reading it, kept (:meth:`ModelCache.notes` puts the upload's name there).
 _PATH = "\x00"
+#: What to do about a model the server does not have, in the page's words and the API's (0.62; 0.61: the API's alone,
+#: "fit one with POST /api/models").
+MODEL_HINT = "pick its exemplar again to fit it (the API: POST /api/models)"
 #: Default bound of the cache folder: 2 GB (a model of the default settings is 10-40 MB).
 DEFAULT_CACHE_BYTES = 2 * 1000**3
 
@@ -93,7 +96,7 @@ class ModelCache:
     """
 
     def __init__(self, cache_dir, max_bytes: int | None = DEFAULT_CACHE_BYTES, *, folder: str = "models",
-                 suffix: str = ".npz", load=None, what: str = "model", hint: str = "fit one with POST /api/models"):
+                 suffix: str = ".npz", load=None, what: str = "model", hint: str = MODEL_HINT):
         self.max_bytes = max_bytes
         self.suffix, self.what, self.hint = suffix, what, hint
         self._load = load or _load_model
@@ -335,8 +338,9 @@ class ModelCache:
 
     def missing(self, model_id: str) -> RequestError:
         """The 404 of a model (or checkpoint) that is not in the folder: never made, or dropped by the bound."""
-        extra = " (or it is still being fitted: see its job)" if self.what == "model" else ""
-        return RequestError(404, f"no {self.what} {model_id}; {self.hint}{extra}")
+        why = "never made here, or its fit has not ended, or" if self.what == "model" else "never uploaded, or"
+        return RequestError(404, f"no {self.what} {model_id[:12]}... on the server ({why} its cache dropped it); "
+                                 f"{self.hint}")
 
     def in_memory(self, model_id: str) -> tuple:
         """``(model, None)`` when ``model_id`` is in memory (its file marked as used), ``(None, future)`` while

@@ -34,7 +34,7 @@ __all__ = ["TORCH_HINT", "COOC_HINT", "MAX_COOC_PIXELS", "MAX_CROPS", "MAX_LENGT
 #: The 501 answer without PyTorch.
 TORCH_HINT = "the co-occurrence endpoints need PyTorch; install it with: pip install 'tghop[metrics]'"
 #: How to make a checkpoint (404 messages).
-COOC_HINT = "upload one with POST /api/cooc (a checkpoint written by 'tghop cooc train')"
+COOC_HINT = "load it again with \"Load a checkpoint\" in Co-occurrence mode (the API: POST /api/cooc)"
 #: Largest co-occurrence image the server makes (the generator's activations at full size
 #: are about 16 x 4 bytes a pixel per layer for the small configuration).
 MAX_COOC_PIXELS = 2048 * 2048
@@ -78,7 +78,8 @@ def store_checkpoint(cache: ModelCache, content: bytes, filename: str, wanted=No
     from .uploads import note_line
 
     try:
-        cid = cache.store(content, filename, hint="send a checkpoint written by 'tghop cooc train'", wanted=wanted)
+        cid = cache.store(content, filename, hint="pick a checkpoint downloaded from this page (Download checkpoint) "
+                                                           "or written by tghop cooc train", wanted=wanted)
     except RequestError as exc:  # a texture model's file: the loader's advice names the library and the CLI
         if exc.status == 400 and _is_texture_model(content):
             raise RequestError(400, f"{filename} is a tghop model file, not a co-occurrence checkpoint; open it "

@@ -52,8 +52,7 @@ async def cooc_summary(server, request):
 async def cooc_file(server, request):
     """``GET /api/cooc/{id}/file``: the checkpoint as uploaded."""
     cid = checkpoint_id(server, request)
-    return send_file(server.cooc, cid, f"no co-occurrence checkpoint {cid}; {cooc.COOC_HINT}", kind="cooc",
-                     name=query_value(request, "name"))
+    return send_file(server.cooc, cid, server.cooc.missing(cid).message, kind="cooc", name=query_value(request, "name"))
 
 
 async def cooc_morph(server, request):

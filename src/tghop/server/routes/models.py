@@ -97,8 +97,7 @@ async def model_file(server, request):
     """``GET /api/models/{id}/file``: the model file as ``tghop fit`` writes it (``?name=``: a name for
     its file, ``tghop-<name>-<id>.npz``)."""
     model_id = request.path_params["id"]
-    return send_file(server.cache, model_id, f"no model {model_id}; fit one with POST /api/models",
-                     name=query_value(request, "name"))
+    return send_file(server.cache, model_id, server.cache.missing(model_id).message, name=query_value(request, "name"))
 
 
 def store_upload(server, content: bytes, filename: str) -> tuple:
@@ -111,7 +110,8 @@ def store_upload(server, content: bytes, filename: str) -> tuple:
     from ...imageio import is_image
 
     try:
-        model_id = server.cache.store(content, filename, hint="send a model file written by 'tghop fit'",
+        model_id = server.cache.store(content, filename, hint="pick a model file downloaded from this page "
+                                      "(Download model) or written by tghop fit",
                                       wanted=server.still_wanted, refit=lambda exc: page_refit(exc, filename))
     except RequestError as exc:  # the loader's advice for an image or a checkpoint is a command line's
         if exc.status == 400 and is_image(io.BytesIO(content)):
