@@ -93,6 +93,10 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow, k
                 p, dtype=None, too_large_hint=HINT_DOWNSCALE_YOURSELF, with_depth=True, keep_alpha=True),
                 notes=told)
             picture, alpha = split_alpha(picture)
+            picture_name, p, (h, w) = filename, materials.patch_size(model), picture.shape[:2]
+            if not grow and min(h, w) < p:  # 0.61: the library's "use a model fitted with a smaller patch_size"
+                raise RequestError(400, f"the picture {filename} is {h}x{w}, smaller than the model's {p}x{p} "
+                                        f"patches; use a picture of at least {p}x{p}, or grow it first (Extend)")
         else:  # its alpha apart: a transparent part is said as tghop inpaint says it (not an exemplar's words)
             read = read_image(content, filename, lambda p: load_image(
                 p, dtype=np.float32, too_large_hint=HINT_DOWNSCALE_YOURSELF, keep_alpha=True), notes=told)
@@ -104,6 +108,9 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow, k
             if grey > MASK_PICTURE_SHARE:  # as tghop inpaint warns: its light pixels are the hole
                 told.append(grey_mask_note(filename, grey))
             mask, mask_name = read.mean(axis=2), filename
+            if mask.shape != picture.shape[:2]:  # 0.61: the library's "give an (H, W) or (H, W, C) mask"
+                raise RequestError(400, f"the mask {filename} is {mask.shape[0]}x{mask.shape[1]} but the picture "
+                                        f"{picture_name} is {h}x{w}; give a mask of the picture's size")
     try:
         if grow:
             picture, hole, _ = expand_canvas(picture, grow[0], anchor=grow[1],
