@@ -686,12 +686,16 @@ def test_extend_grows_the_picture_as_tghop_extend_does(client, fitted, to_fill, 
     centred = client.post(url, files={k: v for k, v in ask.items() if k != "anchor"})  # center by default
     assert centred.status_code == 200 and (decoded(centred.content)[16:80, 20:100] == decoded(image)).all()
     post = client.post
-    for size, words in (("60x80", "the size 60x80 is smaller than the image (64x80) in height"),
-                        ("64x80", "nothing to extend")):
-        assert_error(post(url, files={**ask, "size": (None, size)}), 400, words)
-    strip = png_of(np.full((8, 50, 3), 128, np.uint8))  # the library's words, naming extending (not inpainting)
-    assert_error(post(url, files={**ask, "image": ("strip.png", strip), "size": (None, "8x400")}), 400,
-                 "the image (8x50) extended to 8x400 is thinner than the 32x32 patches", "at least 32x400")
+    # 0.62: in the page's words (0.61: the library's, "the size 60x80 is smaller than the image (64x80) in height",
+    # "nothing to extend", "... or use a model fitted with a smaller patch_size")
+    for size in ("60x80", "64x80"):
+        assert_error(post(url, files={**ask, "size": (None, size)}), 400, " is 64x80; grow it to a size of at least "
+                     f"64x80, larger in one (asked: {size})")
+    strip = png_of(np.full((8, 50, 3), 128, np.uint8))
+    message = assert_error(post(url, files={**ask, "image": ("strip.png", strip), "size": (None, "8x400")}), 400,
+                           "the picture strip.png (8x50) grown to 8x400 is thinner than the model's 32x32 patches; "
+                           "grow it to at least 32x400")
+    assert "patch_size" not in message
     # 0.60: "size must be HEIGHTxWIDTH in pixels, e.g. 512x1024, got ''" of no size, and "size, anchor, seed, tile:
     # plain fields, not files" of one sent as a file
     assert_error(post(url, files={k: v for k, v in ask.items() if k != "size"}), 422,

@@ -235,7 +235,8 @@ def test_what_a_material_cannot_do_is_refused_in_one_line(client, material_id):
     strip = png(to_uint8(data.bricks(48))[:8])  # an 8x48 picture grown to 8x96: thinner than a patch
     assert_error(client.post(f"/api/models/{material_id}/extend", files={
         "image": ("p.png", strip), "size": (None, "8x96"), "map:normal": ("n.png", strip),
-        "map:height": ("h.png", strip)}), 400, "the image (8x48) extended to 8x96 is thinner than the")
+        "map:height": ("h.png", strip)}), 400,  # 0.62: the page's words, as a texture's (0.61: the library's)
+        "the picture p.png (8x48) grown to 8x96 is thinner than the model's 32x32 patches; grow it to at least 32x96")
     assert_error(client.post(f"/api/models/{plain}/inpaint", files={
         "image": ("p.png", picture), "mask": ("m.png", png(mask)), "map:height": ("h.png", picture)}),
         422, "is a texture model; map:<name> fields go with a material")

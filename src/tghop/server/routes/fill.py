@@ -97,6 +97,8 @@ def fill_png(server, model_id: str, fields: dict, seed: int, tile: bool, grow, k
             if not grow and min(h, w) < p:  # 0.61: the library's "use a model fitted with a smaller patch_size"
                 raise RequestError(400, f"the picture {filename} is {h}x{w}, smaller than the model's {p}x{p} "
                                         f"patches; use a picture of at least {p}x{p}, or grow it first (Extend)")
+            if grow:  # 0.61: the library's "the size HxW ..." and "a model fitted with a smaller patch_size"
+                check_growth(filename, (h, w), grow[0], p)
         else:  # its alpha apart: a transparent part is said as tghop inpaint says it (not an exemplar's words)
             read = read_image(content, filename, lambda p: load_image(
                 p, dtype=np.float32, too_large_hint=HINT_DOWNSCALE_YOURSELF, keep_alpha=True), notes=told)
@@ -206,3 +208,15 @@ async def fill_request(server, request, *, grow: bool):
         body, kind = materials.answer(request.headers.get("accept", ""), *png, seed)
         return Response(body, media_type=kind, headers=headers)
     return Response(png, media_type="image/png", headers=headers)
+
+
+def check_growth(filename: str, shape, size, p: int) -> None:
+    """400 where Extend's size (``size``) does not grow the picture of ``shape``, or leaves it thinner than the
+    model's ``p``x``p`` patches, in the page's words (its fields "grow to height" and "width")."""
+    (h, w), (hh, ww) = shape, size
+    if hh < h or ww < w or (hh, ww) == (h, w):
+        raise RequestError(400, f"the picture {filename} is {h}x{w}; grow it to a size of at least {h}x{w}, larger "
+                                f"in one (asked: {hh}x{ww})")
+    if min(hh, ww) < p:
+        raise RequestError(400, f"the picture {filename} ({h}x{w}) grown to {hh}x{ww} is thinner than the model's "
+                                f"{p}x{p} patches; grow it to at least {max(hh, p)}x{max(ww, p)}")
