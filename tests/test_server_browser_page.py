@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 import chromium
-from conftest import FAST_FIT, png, save_material
+from conftest import FAST_FIT, png, save_material, save_texture
 
 sync_api = chromium.require()
 
@@ -1100,3 +1100,20 @@ def test_paints_hint_for_a_second_model_leaves_its_canvas_whole_in_the_window(pa
     finally:
         page.set_viewport_size({"width": 1200, "height": 1400})
     assert not page.errors, page.errors
+
+
+def test_a_model_file_the_server_cannot_use_is_named_in_its_refusal(page, tmp_path):
+    # The page sent a model file as the bare body, without its name: a file tghop could not use was "the upload" in
+    # the refusal, and the command to make it again wrote "-o MODEL.npz" (0.61). It goes as the field 'model' now.
+    save_texture(tmp_path / "whole.npz")
+    with np.load(tmp_path / "whole.npz") as arrays:
+        kept = {k: arrays[k] for k in arrays.files[1:]} if arrays.files[0] != "__meta__" else {
+            k: arrays[k] for k in arrays.files if k != arrays.files[1]}
+    np.savez(tmp_path / "mine.npz", **kept)  # an array of the model missing
+    chromium.load_empty(page)
+    page.set_input_files("#model-file", str(tmp_path / "mine.npz"))
+    said = chromium.wait_said(page, "fit the model again")
+    assert said.startswith("mine.npz: ") and "tghop fit EXEMPLAR -o mine.npz " in said, said
+    assert "the upload" not in said and "MODEL.npz" not in said, said
+    assert not [e for e in page.errors if "status of 400" not in e], page.errors
+    page.errors.clear()  # the 400 answered on purpose, not the next test's

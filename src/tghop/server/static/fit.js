@@ -684,9 +684,11 @@ async function uploadModel(file) {
   say(`uploading ${file.name}`);
   let response;
   try {
-    response = await fetch("/api/models/upload", {
-      method: "POST", body: file, headers: { "Content-Type": "application/octet-stream" },
-    });
+    // the field `model` with the file's name, so that the server's messages name it (0.61 sent the bare body:
+    // "the upload", and a refit's command "-o MODEL.npz")
+    const form = new FormData();
+    form.append("model", file);
+    response = await fetch("/api/models/upload", { method: "POST", body: form });
   } catch (e) {
     if (request === state.fitRequest) backToWorking(`the server did not answer (${e.message})`, undo);
     return;
