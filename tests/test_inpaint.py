@@ -384,6 +384,46 @@ def test_return_stages_gives_each_steps_picture_and_the_last_is_the_result(model
     assert np.array_equal(steps["patch refine"], grown / np.float32(255)) and steps["quilt"].shape == (96, 128, 3)
 
 
+def test_the_pool_is_drawn_before_the_coarse_fill_decoded_after_it_and_let_go_before_the_refinements(
+        small_model, bricks96, square, monkeypatch):
+    # 0.62 decoded the fill's pool before its coarse fill, which holds a pool of its own, and kept it through the
+    # refinements: both pools at once (80-200 MB). 0.63 draws its vectors first (the same draws: the same fill)
+    # and decodes them after the coarse fill.
+    import weakref
+
+    import tghop.inpaint as module
+    from tghop.pool import GeneratedPool, deferred_pool
+
+    m = small_model
+    assert m.layout_ is not None
+    assert np.array_equal(deferred_pool(m, 300, np.random.default_rng(4), np.float32)(),
+                          m.sample_patches(300, rng=4, dtype=np.float32))  # bit for bit
+    events, pools, alive = [], [], []
+    decode, draw, refine = GeneratedPool.all, TGHop.sample_vectors, module.refine_hole
+
+    def spy_decode(self):
+        out = decode(self)
+        events.append(("decode", len(out)))
+        pools.append(weakref.ref(out))
+        return out
+
+    def spy_draw(self, n, *args, **kwargs):
+        events.append(("draw", n))
+        return draw(self, n, *args, **kwargs)
+
+    def spy_refine(*args, **kwargs):
+        alive.append([p() is not None for p in pools])
+        return refine(*args, **kwargs)
+
+    monkeypatch.setattr(GeneratedPool, "all", spy_decode)
+    monkeypatch.setattr(TGHop, "sample_vectors", spy_draw)
+    monkeypatch.setattr(module, "refine_hole", spy_refine)
+    inpaint(m, to_uint8(bricks96), square, rng=1, **POOL)
+    c = module.COARSE_PATCHES
+    assert events == [("draw", POOL["n_patches"]), ("draw", c), ("decode", c), ("decode", POOL["n_patches"])]
+    assert alive[-1] == [False, False]  # the fine fill's refinements: neither pool held
+
+
 # ---------------------------------------------------------------- command line
 def run(*args):
     return cli(*args)  # in this process: the same exit status and output, no interpreter to start

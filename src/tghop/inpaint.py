@@ -4,7 +4,8 @@ Every pixel outside the hole is kept exactly (the same levels for a uint8 or uin
 the same floats for a float one); the hole gets *generated* patches of the model (never pieces of
 an exemplar), chosen so that they continue what surrounds them:
 
-1. A pool of generated patches (:meth:`tghop.TGHop.sample_patches`).
+1. A pool of generated patches (:meth:`tghop.TGHop.sample_patches`; its vectors drawn before a coarse fill,
+   decoded after it: :func:`tghop.pool.deferred_pool`).
 2. Blocks of ``P x P`` on the quilting grid (step ``P - overlap``) that touch the hole are
    filled from the hole's edge inwards (smallest distance to a known pixel first). Each
    takes a pool patch whose squared error over the block's *known* pixels (the image's
@@ -67,6 +68,7 @@ from .masks import snap_to_levels
 from .layout import as_layout_progress, downsample, upsample
 from .patches import downsample_mask
 from .period import match_band
+from .pool import deferred_pool
 from .quilting import GUIDE_SCALE, boundary_cut_mask, default_overlap, flat_factors, gradient_energy
 from .patch_refine import refine_image, steps_for
 from .settings import BY_NAME, check_settings
@@ -510,16 +512,17 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         return (out, stages) if return_stages else out
 
     report(progress, "patch pool", 0, 1)
-    pool = model.sample_patches(int(n_patches), rng=rng, dtype=np.float32)  # (n, P, P, C)
+    # Its vectors drawn now, decoded after the coarse fill: the same draws, one pool held at a time (0.63).
+    decode_pool = deferred_pool(model, int(n_patches), rng, np.float32)
+    report(progress, "patch pool", 1, 1)
+    guide = _coarse_fill(model, work, hole, tile, order, flat_share, seam_window, rng, progress) if layout_weight \
+        else None
+    pool = decode_pool()  # (n, P, P, C)
     n = len(pool)
     flat_pool = pool.reshape(n, p * p * n_channels)
     squares = np.einsum("npc,npc->np", pool.reshape(n, p * p, n_channels), pool.reshape(n, p * p, n_channels))
     energy = gradient_energy(pool)
     flat = flat_factors(energy, flat_share) if flat_share else None
-    report(progress, "patch pool", 1, 1)
-
-    guide = _coarse_fill(model, work, hole, tile, order, flat_share, seam_window, rng, progress) if layout_weight \
-        else None
     if guide is not None:
         keep("guide", guide)
     if return_stages:  # as synthesize's: the pool the fill drew from, (n, P, P, C) float32
@@ -528,6 +531,7 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     distance = _distance_to_known(hole, tile)  # once: the fill's order, its guide's ramp and the fades
     filled, owner = _fill(work, hole, distance, pool, (flat_pool, squares, energy, flat), p, tile, float(tolerance),
                           float(detail), guide, order, rng, progress)
+    del pool, flat_pool, squares, guide  # let go before the refinements (their peak; stages keep their copy)
     keep("quilt", filled)
     if seam_window:
         report(progress, "seams", 0, 1)

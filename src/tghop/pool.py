@@ -12,11 +12,12 @@ import math
 
 import numpy as np
 
+from ._resources import one_blas_thread
 from .patches import depth_to_space
 from .quilting import POOL_CHUNK, block_count, prepare_pool
 
-__all__ = ["GeneratedPool", "DECODE_CHUNK", "ON_DEMAND_BLOCKS", "MAX_GROWN_POOL", "block_decoder", "on_demand",
-           "patch_decoder", "pool_size", "prepared_pool"]
+__all__ = ["GeneratedPool", "deferred_pool", "DECODE_CHUNK", "ON_DEMAND_BLOCKS", "MAX_GROWN_POOL", "block_decoder",
+           "on_demand", "patch_decoder", "pool_size", "prepared_pool"]
 
 #: Patches decoded per step (the intermediate arrays stay in cache).
 DECODE_CHUNK = 64
@@ -267,3 +268,39 @@ class GeneratedPool:
             Of the pool's dtype; every patch decoded anew (nothing is kept).
         """
         return self._fill(np.arange(self.shape[0]), np.empty(self.shape, dtype=self.dtype))
+
+
+def deferred_pool(model, n, rng, dtype):
+    """Draw a pool's core-model vectors now and decode its patches later: ``decode()`` gives what
+    ``model.sample_patches(n, rng=rng, dtype=dtype)`` gives now, bit for bit (the same draws from ``rng``; both in
+    one BLAS thread), but until it is called only the vectors take memory ((n, D_r), not (n, P, P, C)).
+
+    :func:`tghop.inpaint.inpaint` draws its pool before its coarse fill, which draws and holds a pool of its own,
+    and decodes it after that: the two pools are not held at once (0.63; 0.62 held both, 80-200 MB).
+
+    Parameters
+    ----------
+    model : TGHop, or any object with ``sample_patches(n, rng=, dtype=)``
+        One without ``sample_vectors`` (a pool of real patches) is sampled whole now.
+    n : int
+    rng : numpy.random.Generator
+    dtype : numpy dtype
+        float32 or float64.
+
+    Returns
+    -------
+    callable
+        ``decode()`` -> ndarray (n, P, P, C) in [0, 1], of ``dtype``; the vectors are let go after it.
+    """
+    if not hasattr(model, "sample_vectors"):
+        patches = model.sample_patches(n, rng=rng, dtype=dtype)
+        return lambda: patches
+    with one_blas_thread():  # as sample_patches draws them (OpenBLAS's products round by its threads)
+        vectors = [model.sample_vectors(n, rng, np.dtype(dtype))]
+
+    def decode():
+        with one_blas_thread():
+            pool = GeneratedPool(model, *vectors.pop())
+            return pool.all()
+
+    return decode
