@@ -43,3 +43,15 @@ def test_a_long_period_is_matched_on_the_whole_block():
     bricks = data.bricks(192, rng=5)  # the gallery's picture: courses of running bond
     band = match_band(bricks, np.pad(hole, ((0, 32), (0, 64))), 5, 32)
     assert 16 <= band <= 32
+
+
+def test_peaks_of_negative_correlation_are_no_repeat():
+    """A hole of scattered pixels over most of a picture can leave only peaks of negative correlation, none of
+    them a repeat: no period (0.62 raised ValueError from ``min()``, a traceback from ``tghop inpaint``)."""
+    rng = np.random.default_rng(347)
+    h, w = rng.integers(64, 256, 2)
+    picture = data.bricks(256, rng=0)[:h, :w]
+    hole = rng.random((h, w)) < rng.uniform(0.3, 0.95)
+    strength, lag = repeat(picture, hole, 32)
+    assert (strength, lag) == (0.0, 0)
+    assert match_band(picture, hole, 5, 32) == 5

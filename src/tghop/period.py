@@ -8,7 +8,7 @@ courses, tiles) keeps its rows only when a block sees a whole period of what is 
 
 The autocorrelation is taken over the known pixels only (the hole's masked out, each lag normalised by the
 pairs of known pixels it has): ``r(d)``, 1 at ``d = 0``. Its peaks away from the origin are the repeats; the
-strongest, ``r`` at a local maximum whose valley towards the origin is at least ``PROMINENCE`` below it,
+strongest, ``r`` at a positive local maximum whose valley towards the origin is at least ``PROMINENCE`` below it,
 within ``MAX_LAG`` patch sides (Chebyshev), is the texture's regularity; the nearest peak nearly as strong
 (``FUNDAMENTAL``) gives its period.
 
@@ -101,7 +101,7 @@ def repeat(image, hole, patch_size):
         k = int(lag[y, x])
         t = np.linspace(0.0, 1.0, 2 * k + 1)
         line = r[np.round(reach + t * dy[y, x]).astype(int), np.round(reach + t * dx[y, x]).astype(int)]
-        if r[y, x] - line.min() >= PROMINENCE:
+        if r[y, x] > 0 and r[y, x] - line.min() >= PROMINENCE:  # a peak of negative correlation is no repeat
             found.append((float(r[y, x]), k))
     if not found:
         return 0.0, 0
