@@ -2014,6 +2014,16 @@ def test_a_hand_edited_ledger_line_repeating_a_key_or_nested_deep_is_skipped_as_
     assert {r["name"]: r["skipped"] for r in run(src, out, workers=1)} == {"a": False, "sub__a": True}
 
 
+def test_a_ledger_line_not_in_utf8_is_skipped_as_a_torn_one(tmp_path):
+    # 0.62 read the whole ledger as UTF-8: one line of other bytes (a hand edit in Latin-1, a sector of garbage) made
+    # it unreadable, and every rerun fitted every exemplar again without a word.
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    assert [r["status"] for r in run(src, out, workers=1)] == ["ok", "ok"]
+    with open(out / "batch.jsonl", "ab") as fh:
+        fh.write(b'{"name": "caf\xe9"}\n\xff\xfe\x00garbage\n')
+    assert [r["skipped"] for r in run(src, out, workers=1)] == [True, True]
+
+
 def test_a_folder_or_file_in_the_way_of_an_exemplars_results_is_named_and_nothing_moved(tmp_path):
     # 0.61 moved the exemplar's files into place one by one: a folder named as its model (a.npz) failed that move
     # after its images had moved (a failed exemplar with files of its own, IsADirectoryError's words in the ledger),

@@ -397,15 +397,15 @@ def read_ledger_files(outdir, standing=None, lost=None):
     records, files = {}, {}
     standing = {} if standing is None else standing
     lost = {} if lost is None else lost
-    try:
-        text = (Path(outdir) / LEDGER).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError):
+    try:  # line by line, as compact_ledger reads it: 0.62 decoded the whole file, and a line not in UTF-8 hid them all
+        lines = (Path(outdir) / LEDGER).read_bytes().split(b"\n")
+    except OSError:
         return records, files
-    for line in text.splitlines():
+    for line in lines:
         try:
             rec = loads_unique(line)
-        except (ValueError, RecursionError):  # a line torn by a crash; hand-edited: a key given twice (0.59 took its
-            continue  # last value), arrays nested thousands deep (0.59: a traceback)
+        except (ValueError, RecursionError):  # a line torn by a crash or not in UTF-8; hand-edited: a key given twice
+            continue  # (0.59 took its last value), arrays nested thousands deep (0.59: a traceback)
         if isinstance(rec, dict) and isinstance(rec.get("name"), str):
             records[rec["name"]] = rec
             if rec.get("worker_died"):
