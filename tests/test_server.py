@@ -325,8 +325,9 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
     Image.new("RGB", (64, 64), (120, 120, 120)).save(flat, format="PNG")
     assert_error(post("/api/models", files={"image": ("flat.png", flat.getvalue())}), 400, "no texture")
     # Too small for the settings: the smallest that works (it said "at least 32x32" to a 40x40 image).
+    # Its fixes in the page's words (0.63; 0.62: "N of at most 2 (n_clusters)", the page's field "clusters (N)").
     assert_error(post("/api/models", files={"image": ("small.png", exemplar_png(40))}), 400,
-                 "40x40 pixels", "at least 44x44")
+                 "40x40 pixels", "at least 44x44", "N of at most 2 (the field clusters (N); the API's n_clusters)")
     good = client.get(f"/api/models/{model_id}/file").content
     assert_error(post("/api/models/upload", files={"model": ("cut.npz", good[: len(good) // 2])}), 400,
                  "cut.npz: truncated, corrupt")

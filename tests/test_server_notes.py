@@ -295,10 +295,10 @@ def test_the_servers_words_name_no_command_line_option():
     said = ("n_clusters=8 needs at least 400 training patches; lower N (n_clusters, --clusters) or the least cluster "
             "size (min_cluster_size, --min-cluster-size), take more training patches (a smaller stride, --stride, "
             "or a larger max_patches, --max-patches) or use a larger exemplar")
-    assert page_words(said) == (
-        "n_clusters=8 needs at least 400 training patches; lower N (n_clusters) or the least cluster size "
-        "(min_cluster_size), take more training patches (a smaller stride, or a larger max_patches) or use a "
-        "larger exemplar")
+    assert page_words(said) == (  # a setting the page's field names otherwise: the field, then the API's (0.63)
+        "n_clusters=8 needs at least 400 training patches; lower N (the field clusters (N); the API's n_clusters) or "
+        "the least cluster size (min_cluster_size), take more training patches (a smaller stride, or a larger number "
+        "in the field training patches (the API's max_patches)) or use a larger exemplar")
     assert page_words("K1 (n_channels[0], --k1) is 3") == "K1 (n_channels[0]) is 3"
     assert page_words("give --tile once") == "give --tile once"  # an option alone, not beside a setting: as it is
     assert json.loads(error_response(422, "a tileable output (tile, --tile) needs more").body) == {

@@ -22,7 +22,7 @@ from .._errors import TGHopError
 __all__ = ["RequestError", "check_channel_counts", "check_multipart_end", "decode_png_field", "fit_fields", "json_bool",
            "http_headers", "http_message", "parse_bool", "parse_fit_settings", "parse_generation", "parse_growth",
            "parse_guided", "parse_guide_labels", "parse_morph", "page_words", "safe_name", "file_stem",
-           "content_disposition", "query_value", "MAX_MODELS",
+           "content_disposition", "query_value", "MAX_MODELS", "PAGE_FIELDS",
            "MAX_TRANSITION"]
 
 #: Most models in one guided image (a painted guide or a remix).
@@ -64,11 +64,24 @@ def query_value(request, key: str, default=None):
 _CLI_OPTION = re.compile(r", --[a-z][a-z0-9-]*(?=[,)])")
 
 
+#: The fit settings the page has a field for under another name (index.html's labels): a library message naming the
+#: setting ("N of at most 2 (n_clusters, --clusters)") names the page's field first, then the API's (0.63; 0.62 named
+#: n_clusters alone, where the page says "clusters (N)").
+PAGE_FIELDS = {"n_clusters": "clusters (N)", "n_codewords": "codewords (W)", "max_patches": "training patches"}
+_FIELD_SETTING = "|".join(PAGE_FIELDS)
+_SETTING_IN_PARENS = re.compile(rf"\(({_FIELD_SETTING})\)")
+_LARGER_SETTING = re.compile(rf"\ba larger ({_FIELD_SETTING})\b")
+
+
 def page_words(message: str) -> str:
     """A message of the library told to the page or an API client (an error, a failed job's, a note): one line,
     without the command-line options it names beside the setting's own name (``(patch_size, --patch-size)``
-    -> ``(patch_size)``), which neither the page nor the API has."""
-    return _CLI_OPTION.sub("", " ".join(str(message).split()))
+    -> ``(patch_size)``), which neither the page nor the API has; a setting the page's field names otherwise
+    (:data:`PAGE_FIELDS`) as that field, then the API's (``(n_clusters, --clusters)`` -> ``(the field clusters (N);
+    the API's n_clusters)``)."""
+    text = _CLI_OPTION.sub("", " ".join(str(message).split()))
+    text = _SETTING_IN_PARENS.sub(lambda m: f"(the field {PAGE_FIELDS[m[1]]}; the API's {m[1]})", text)
+    return _LARGER_SETTING.sub(lambda m: f"a larger number in the field {PAGE_FIELDS[m[1]]} (the API's {m[1]})", text)
 
 
 def _name_chars(name) -> str:
