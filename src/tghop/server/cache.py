@@ -8,6 +8,7 @@ An id is 64 hex digits (a content hash); anything else is 404 before the file sy
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import os
 import re
@@ -282,9 +283,23 @@ class ModelCache:
 
     def _unwritable(self, exc: OSError) -> RequestError:
         """507 for a file the folder cannot take (a full disk, a folder made read-only or removed
-        meanwhile): the server's trouble, said in one line, not the upload's."""
-        return RequestError(507, f"cannot write to the cache folder {self.models} ({exc.strerror or exc}); "
-                                 "free some space there or start the server with another --cache")
+        meanwhile): the server's trouble, said in one line, not the upload's; its fix is for whoever started the
+        server, said as such to the page (0.63; 0.62 told the page "start the server with another --cache")."""
+        return RequestError(507, f"cannot write to the cache folder {self.models} ({exc.strerror or exc}); the server "
+                                 f"keeps no new {self.what} until whoever started it frees some space there or starts "
+                                 "it again with another folder (tghop serve --cache FOLDER)")
+
+    def cannot_keep(self) -> RequestError:
+        """:meth:`_unwritable` of a fitted model's file that could not be written into the folder (0.63: 0.62's failed
+        fit said the library's words, "... is a file, not a folder; give the model a path in a folder"): why, as a
+        probe file in the folder finds it (the folder gone, or not one, or read-only), else a full disk."""
+        try:
+            fd, probe = tempfile.mkstemp(prefix=".probe.", suffix=".tmp", dir=self.models)
+            os.close(fd)
+            os.unlink(probe)
+        except OSError as exc:
+            return self._unwritable(exc)
+        return self._unwritable(OSError(errno.ENOSPC, "the model's file could not be written: a full disk?"))
 
     def added(self, model_id: str, model) -> None:
         """A model file was just written: keep the model in memory and the folder in bounds."""

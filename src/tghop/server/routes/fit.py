@@ -8,7 +8,7 @@ import asyncio
 import hashlib
 import json
 
-from ..._errors import TGHopError, collect_warnings
+from ..._errors import ModelFileError, TGHopError, collect_warnings
 from .. import materials
 from ..core import json_response
 from ..jobs import FINAL, JOB_ID, QueueFull, fit_stages, unknown_snapshot
@@ -136,7 +136,10 @@ def fit_work(server, model_id: str, fit):
             with collect_warnings() as said:  # told with the model's summary, not on the server's console
                 model = fit(job.progress)
             job.progress("saving", 0, 1)  # the last point where a cancel stops the fit
-            save_model(model, server.cache.path(model_id))
+            try:
+                save_model(model, server.cache.path(model_id))
+            except ModelFileError:  # the cache folder's trouble (full, gone, read-only), told as an upload's is
+                raise server.cache.cannot_keep() from None
             server.cache.added(model_id, model)
             server.cache.fitted(model_id, said)
             job.progress("saving", 1, 1, cancellable=False)  # the file is there: the job is done
