@@ -851,6 +851,35 @@ def test_an_avif_file_and_a_pillow_older_than_11_2_is_one_line_naming_the_upgrad
                     "install a Pillow that reads it (pip install --upgrade pillow) or convert the file to PNG"), said
 
 
+@pytest.mark.parametrize("size", [240, 250, 255])
+def test_a_name_the_file_system_takes_is_written(tmp_path, size):
+    # 0.62's probe and temporary files were the whole name and 14-16 more: a name of 240 to 255 bytes, which the file
+    # system takes, was refused as "File name too long" (tghop synth -o, and a --stages step named after it).
+    from tghop.imageio import check_output_path, save_image, save_images
+
+    img = np.full((4, 4, 3), 0.5)
+    name = "é" * ((size - 4) // 2) + "a" * ((size - 4) % 2) + ".png"
+    assert len(name.encode()) == size
+    check_output_path(tmp_path / name)
+    save_image(img, tmp_path / name)
+    save_images([(img, tmp_path / name, 8), (img, tmp_path / "b.png", 8)])
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([name, "b.png"])
+
+
+def test_a_name_over_the_file_systems_limit_is_refused_in_its_words(tmp_path):
+    from tghop._errors import InvalidImageError
+    from tghop.imageio import check_output_path
+
+    # 0.62: the path's first 80 characters, "cannot write the image there (File name too long)": a step's or map's
+    # name, its end, cut off
+    path = tmp_path / ("a" * 240 + "_patch-refine.png")
+    with pytest.raises(InvalidImageError) as said:
+        check_output_path(path)
+    assert str(said.value) == (f"{str(path)[:60]}...{'a' * 23}_patch-refine.png: the file's name is 257 bytes, more "
+                               "than a name may have (File name too long); give a shorter name for the image")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_save_images_writes_a_long_name_that_its_check_passes(tmp_path):
     # check_output_path's probe is the name and 16 characters; save_images' temporary file, of the whole name, and
     # save_image's own beside it were the name and 29: a name of 227 to 239 characters passed the check and failed

@@ -27,7 +27,7 @@ from ._formats import DEPTHS, check_tifffile, checkpoint_note, extensions, missi
 from .depths import RANGE_TOLERANCE, check_depth, deepest, generation_dtype, output_format, to_uint8, to_uint16
 from .image_decode import (decode_pillow, file_header, has_alpha, metadata_too_large, open_image, read_deep,
                            transparency_note, transparent_share, upright)
-from .output_files import check_output_path, write_atomic, written_file
+from .output_files import check_output_path, temporary_prefix, write_atomic, written_file
 from .png import WRITING, write_png
 from .profiles import deep_to_srgb, gamma_to_srgb
 
@@ -334,7 +334,7 @@ def save_images(items, *, progress=None) -> None:
             backup = None
             try:
                 if os.path.lexists(target):
-                    backup = target.with_name(f".{target.name}.{uuid.uuid4().hex[:8]}.old")
+                    backup = target.with_name(f"{temporary_prefix(target)}{uuid.uuid4().hex[:8]}.old")
                     os.replace(target, backup)
                 os.replace(tmp, target)
             except OSError as exc:

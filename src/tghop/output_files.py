@@ -4,13 +4,14 @@ link kept (:func:`written_file`). Images, models and the batch's files are all w
 
 from __future__ import annotations
 
+import errno
 import os
 import tempfile
 from pathlib import Path
 
 from ._errors import InvalidImageError
 
-__all__ = ["written_file", "check_output_path", "write_atomic"]
+__all__ = ["written_file", "check_output_path", "write_atomic", "temporary_prefix"]
 
 
 def written_file(path, *, what: str = "image", error=InvalidImageError) -> Path:
@@ -65,7 +66,12 @@ def check_output_path(path, *, what: str = "image", error=InvalidImageError) -> 
         is_dir = path.is_dir()
         target = written_file(path, what=what, error=error)
     except OSError as exc:  # e.g. a name too long
-        raise error(f"{str(path)[:80]}: cannot write the {what} there ({exc.strerror}); choose another name") from None
+        said = str(path) if len(str(path)) <= 120 else f"{str(path)[:60]}...{str(path)[-40:]}"  # a step's, a map's end
+        size = len(os.fsencode(path.name))
+        if exc.errno == errno.ENAMETOOLONG and size > 255:
+            raise error(f"{said}: the file's name is {size} bytes, more than a name may have ({exc.strerror}); give a "
+                        f"shorter name for the {what}") from None
+        raise error(f"{said}: cannot write the {what} there ({exc.strerror}); choose another name") from None
     if is_dir:
         raise error(f"{path} is a folder; give a file name for the {what}")
     directory = target.parent if str(target.parent) else Path(".")
@@ -77,14 +83,41 @@ def check_output_path(path, *, what: str = "image", error=InvalidImageError) -> 
         if directory.exists():
             raise error(f"{directory} is a file, not a folder; give the {what} a path in a folder")
         raise error(f"{directory}: output folder does not exist; create it first")
+    limit = _name_max(directory)
+    size = len(os.fsencode(target.name))
+    if limit is not None and size > limit:
+        raise error(f"{path}: the file's name is {size} bytes, more than the {limit} a name may have there; give a "
+                    f"shorter name for the {what}")
     try:
-        fd, probe = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".probe", dir=directory)
+        fd, probe = tempfile.mkstemp(prefix=temporary_prefix(target), suffix=".probe", dir=directory)
         os.close(fd)
         os.unlink(probe)
     except OSError as exc:
         raise error(f"{path}: cannot write the {what} there ({exc.strerror or exc.__class__.__name__}); "
                     "choose another folder or name") from None
     return directory
+
+
+def _name_max(directory):
+    """The most bytes a file's name may have in ``directory`` (255 on most file systems), None where not known."""
+    try:
+        return int(os.pathconf(directory, "PC_NAME_MAX"))
+    except (AttributeError, OSError, ValueError):  # not POSIX, or a file system that does not say
+        return None
+
+
+def temporary_prefix(target) -> str:
+    """``.NAME.``, the start of a temporary file's name beside file ``target`` (a probe, the file while written, the
+    one it replaces kept aside), ``NAME`` its name cut (whole characters) so that the prefix, 8 random characters and
+    a suffix of up to 6 (``.probe``) fit the bytes a name may have there (0.63: 0.62's were the whole name and 14-16
+    more, so that a name of 240 to 255 bytes, which the file system takes, was refused as too long). The whole name
+    where the folder's limit is not known."""
+    target = Path(target)
+    name, limit = target.name, _name_max(target.parent if str(target.parent) else ".")
+    if limit is not None:
+        while name and len(os.fsencode(name)) > limit - 16:
+            name = name[:-1]
+    return f".{name}."
 
 
 def write_atomic(path, write, *, what: str = "image", error=InvalidImageError) -> None:
@@ -107,7 +140,7 @@ def write_atomic(path, write, *, what: str = "image", error=InvalidImageError) -
     target = written_file(path, what=what, error=error)
     tmp = None
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+        fd, tmp = tempfile.mkstemp(prefix=temporary_prefix(target), suffix=".tmp", dir=directory)
         with os.fdopen(fd, "wb") as fh:
             write(fh)
         umask = os.umask(0)
