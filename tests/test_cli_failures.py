@@ -85,7 +85,9 @@ CASES = [
     (["synth", "bricks.png", "-o", "/proc/o.png", *FAST], ["/proc/o.png", "cannot write"]),
     (["fit", "bricks.png", "-o", "/proc/m.npz", *FAST], ["/proc/m.npz", "cannot write"]),
     (["synth", "bricks.png", "-o", "o.png", "--save-model", "/proc/m.npz", *FAST], ["/proc/m.npz", "cannot write"]),
-    (["synth", "bricks.png", "-o", "x" * 300 + ".png", *FAST], ["cannot write"]),
+    (["synth", "bricks.png", "-o", "x" * 300 + ".png", *FAST],
+     ["xx...xxxx", "x.png: the file's name is 304 bytes, more than a name may have (File name too long); give a "
+      "shorter name"]),
     # a flat exemplar, whatever gamma
     (["fit", "flat.png", "-o", "m.npz"], ["no texture"]),
     (["synth", "flat.png", "-o", "o.png", "--gamma", "0"], ["no texture"]),
@@ -372,12 +374,23 @@ def test_full_disk_leaves_no_file(folder, monkeypatch):
     for name in ("full.png", "full.jpg"):
         code, _, err, exc = invoke("synth", "model.npz", "-o", name, "--size", "40", "--pool", "100", "-q",
                                    cwd=folder)
-        assert_one_line(code, err, name, "No space left", exception=exc)
+        # its fix named (0.63; 0.62: "...; nothing was written", no fix)
+        assert_one_line(code, err, name, "No space left", "free some space there, or write elsewhere", exception=exc)
         assert sorted(os.listdir(folder)) == before
 
     monkeypatch.setattr(np, "savez", full)
     code, _, err, exc = invoke("fit", "bricks.png", "-o", "full.npz", *FAST, cwd=folder)
-    assert_one_line(code, err, "full.npz", "No space left", exception=exc)
+    assert_one_line(code, err, "full.npz", "No space left", "free some space there, or write elsewhere", exception=exc)
+    assert sorted(os.listdir(folder)) == before
+    monkeypatch.undo()
+
+    def failing(*args, **kwargs):  # a disk that fails another way (EIO): another folder is the fix
+        raise OSError(errno.EIO, "Input/output error")
+
+    monkeypatch.setattr(imageio, "write_png", failing)
+    code, _, err, exc = invoke("synth", "model.npz", "-o", "io.png", "--size", "40", "--pool", "100", "-q", cwd=folder)
+    assert_one_line(code, err, "io.png: writing the image failed (Input/output error), nothing was written; write "
+                    "elsewhere (another folder or disk)", exception=exc)
     assert sorted(os.listdir(folder)) == before
 
 

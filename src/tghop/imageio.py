@@ -27,7 +27,7 @@ from ._formats import DEPTHS, check_tifffile, checkpoint_note, extensions, missi
 from .depths import RANGE_TOLERANCE, check_depth, deepest, generation_dtype, output_format, to_uint8, to_uint16
 from .image_decode import (decode_pillow, file_header, has_alpha, metadata_too_large, open_image, read_deep,
                            transparency_note, transparent_share, upright)
-from .output_files import check_output_path, temporary_prefix, write_atomic, written_file
+from .output_files import check_output_path, temporary_prefix, write_atomic, write_fix, written_file
 from .png import WRITING, write_png
 from .profiles import deep_to_srgb, gamma_to_srgb
 
@@ -340,8 +340,8 @@ def save_images(items, *, progress=None) -> None:
             except OSError as exc:
                 if backup is not None and not os.path.lexists(target):
                     os.replace(backup, target)
-                raise InvalidImageError(f"{path}: writing the image failed ({exc.strerror or exc.__class__.__name__}); "
-                                        "none of the images was written") from None
+                raise InvalidImageError(f"{path}: writing the image failed ({exc.strerror or exc.__class__.__name__}), "
+                                        f"none of the images was written; {write_fix(exc)}") from None
             moved.append((target, backup))
     except BaseException:
         for target, backup in reversed(moved):

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from ._errors import InvalidImageError
 
-__all__ = ["written_file", "check_output_path", "write_atomic", "temporary_prefix"]
+__all__ = ["written_file", "check_output_path", "write_atomic", "temporary_prefix", "write_fix"]
 
 
 def written_file(path, *, what: str = "image", error=InvalidImageError) -> Path:
@@ -150,13 +150,22 @@ def write_atomic(path, write, *, what: str = "image", error=InvalidImageError) -
     except BaseException as exc:  # Ctrl-C and the command's SIGTERM/SIGHUP (tghop.cli.common.Terminated) too
         if tmp is None:  # mkstemp failed: nothing to remove
             if isinstance(exc, OSError):
-                raise error(f"{path}: cannot write the {what} ({exc.strerror or exc.__class__.__name__})") from None
+                raise error(f"{path}: cannot write the {what} ({exc.strerror or exc.__class__.__name__}); "
+                            f"{write_fix(exc)}") from None
             raise
         try:
             os.unlink(tmp)
         except FileNotFoundError:
             pass
         if isinstance(exc, OSError):
-            raise error(f"{path}: writing the {what} failed ({exc.strerror or exc.__class__.__name__}); "
-                        "nothing was written") from None
+            raise error(f"{path}: writing the {what} failed ({exc.strerror or exc.__class__.__name__}), nothing was "
+                        f"written; {write_fix(exc)}") from None
         raise
+
+
+def write_fix(exc: OSError) -> str:
+    """The fix a failed write's one line names (0.63; 0.62's said "nothing was written" and no fix): free space for
+    a full disk or quota, else another folder."""
+    if exc.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC)):
+        return "free some space there, or write elsewhere"
+    return "write elsewhere (another folder or disk)"
