@@ -2024,6 +2024,15 @@ def test_a_ledger_line_not_in_utf8_is_skipped_as_a_torn_one(tmp_path):
     assert [r["skipped"] for r in run(src, out, workers=1)] == [True, True]
 
 
+def test_a_folder_named_as_a_claim_is_no_claim(tmp_path):
+    # 0.62 took a folder .batch-running in an exemplar's folder (made by hand) for a killed run's claim: the exemplar
+    # was made again, the folder could not be removed as the claim's file is, and so in every rerun, without a word.
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    assert [r["status"] for r in run(src, out, workers=1)] == ["ok", "ok"]
+    (out / "a" / batch.RUNNING).mkdir()
+    assert [r["skipped"] for r in run(src, out, workers=1)] == [True, True]
+
+
 def test_a_folder_or_file_in_the_way_of_an_exemplars_results_is_named_and_nothing_moved(tmp_path):
     # 0.61 moved the exemplar's files into place one by one: a folder named as its model (a.npz) failed that move
     # after its images had moved (a failed exemplar with files of its own, IsADirectoryError's words in the ledger),

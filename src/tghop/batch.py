@@ -47,7 +47,7 @@ from .batch_plan import (IMAGE_SUFFIXES, LEDGER, NAME_MAX, RUNNING, append_ledge
                          keep_ledger_names, mark_running, move_renamed, open_ledger, prune_orphans,
                          read_hashes, read_ledger, read_ledger_files, remove_stale, renamable, renamed_from,
                          sync_ledger, worker_deaths, write_hashes)
-from .batch_task import disk_full, process_exemplar, remove_temporaries
+from .batch_task import claimed, disk_full, process_exemplar, remove_temporaries
 from .contact_sheet import CONTACT_SHEET, write_contact_sheet as _write_sheet
 from .manifest import parse_bool, parse_int, parse_size
 
@@ -349,7 +349,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     orphans = [name for name in orphans if name not in {old for _, old in renames}]
     # Those a killed run left under way last (0.62): in this process, an exemplar that kills it (out of memory, a
     # decoder's crash) came first again on every rerun, and no exemplar after it was ever made (stable: else in order).
-    jobs.sort(key=lambda job: os.path.lexists(os.path.join(job["folder"], RUNNING)))
+    jobs.sort(key=lambda job: claimed(job["folder"]))
     own_client = ledger_file = None
     try:
         if (jobs or renames) and scheduler is not None and client is None:  # a move that fails: made on it

@@ -39,7 +39,7 @@ from pathlib import Path
 from ._errors import TGHopError
 from ._json import loads_unique
 from ._formats import OTHER_IMAGE_SUFFIXES, READ_SUFFIXES
-from .batch_task import RUNNING, THUMBNAIL_FILE, output_files, remove_temporaries, write_claim
+from .batch_task import RUNNING, THUMBNAIL_FILE, claimed, output_files, remove_temporaries, write_claim
 from .contact_sheet import CONTACT_SHEET
 from .manifest import MAX_MAPS, read_manifest
 
@@ -601,7 +601,7 @@ def is_done(prev: dict | None, job: dict, outdir: Path) -> bool:
     settings, no :data:`RUNNING` file left, and every file the line lists still in OUTDIR."""
     if not prev or prev.get("status") != "ok" or prev.get("sha256") != job["sha256"]:
         return False
-    if os.path.lexists(os.path.join(job["folder"], RUNNING)):  # handed out by a run killed before its line
+    if claimed(job["folder"]):  # handed out by a run killed before its line
         return False
     if prev.get("settings") != job["settings"]:
         return False
@@ -621,7 +621,7 @@ def is_known_failure(prev: dict | None, job: dict, version: str) -> bool:
     before causes were recorded, is not one: it is tried again."""
     if not prev or prev.get("status") != "failed" or prev.get("cause") != "input" or job["sha256"] is None:
         return False
-    if os.path.lexists(os.path.join(job["folder"], RUNNING)):
+    if claimed(job["folder"]):
         return False
     renamed = Path(str(prev.get("source", job["source"]))).name != Path(job["source"]).name
     return prev.get("sha256") == job["sha256"] and prev.get("settings") == job["settings"] \

@@ -21,7 +21,7 @@ from ._formats import is_model_file, model_file_kind
 
 __all__ = ["process_exemplar", "run_checked", "remove_temporaries", "one_line", "outside_the_files", "disk_full",
            "task_threads", "output_files", "write_claim", "holding_claim", "STAGE", "THUMBNAIL", "THUMBNAIL_FILE",
-           "RUNNING", "SUPERSEDED"]
+           "RUNNING", "SUPERSEDED", "claimed"]
 
 #: Prefix and suffix of the hidden folder in which :func:`process_exemplar` makes an exemplar's files.
 STAGE = (".partial.", ".tmp")
@@ -109,6 +109,14 @@ def _lock(fd) -> None:
         return
     with contextlib.suppress(OSError):  # a file system without locks: checked unlocked
         fcntl.flock(fd, fcntl.LOCK_EX)
+
+
+def claimed(folder) -> bool:
+    """Whether ``folder`` holds a :data:`RUNNING` file: its exemplar was handed out by a run that wrote no line for it
+    (killed, or still running). A folder of that name is none (tghop makes none; 0.62 took it for one, and as
+    it cannot be removed as a file, made the exemplar again in every rerun without a word)."""
+    path = os.path.join(folder, RUNNING)
+    return os.path.lexists(path) and not os.path.isdir(path)
 
 
 def write_claim(folder, claim) -> bool:
