@@ -496,6 +496,54 @@ def test_morph_regions_have_organic_outlines_and_follow_the_ramp(models, monkeyp
     assert len(np.unique(np.nonzero(across)[1] % 16)) == 16 and len(np.unique(np.nonzero(down)[0] % 16)) >= 12
 
 
+def _straight_share(labels, run=16):
+    """The share of a label map's boundary (pixel edges between two labels) in horizontal or vertical
+    straight runs of at least ``run`` pixels."""
+    total = long = 0
+    for edges in (labels[:-1] != labels[1:], (labels[:, :-1] != labels[:, 1:]).T):
+        steps = np.diff(np.pad(edges, ((0, 0), (1, 1))).astype(np.int8), axis=1)
+        lengths = np.nonzero(steps == -1)[1] - np.nonzero(steps == 1)[1]
+        total += lengths.sum()
+        long += lengths[lengths >= run].sum()
+    return long / max(total, 1)
+
+
+def test_remix_regions_have_smooth_outlines_and_no_specks():
+    """0.62 repeated each sample of a remix's field over its 16 px cell: every outline a staircase of
+    cell-sized steps (all of the boundary in straight runs of 16 px or more; the join straightened them
+    into long horizontal and vertical edges, blocks of gravel in grass), and regions down to one cell (256
+    px; 2-500 px since the field is interpolated) where the image's edge cut a blob off or a lone peak
+    rose: specks of one texture in another. Now the field is interpolated linearly and regions under
+    REMIX_ISLAND blob areas go to the class around them; the classes keep about equal areas."""
+    from scipy import ndimage
+
+    shares, smallest = [], guided.REMIX_ISLAND * 64 ** 2
+    for seed in range(4):
+        for size, k in (((512, 512), 3), ((1024, 768), 2)):
+            labels = guided.random_labels(size, k, rng=seed)
+            shares.append(_straight_share(labels))
+            assert np.abs(np.bincount(labels.ravel(), minlength=k) / labels.size - 1 / k).max() < 0.02
+            for value in range(k):
+                sizes = np.bincount(ndimage.label(labels == value)[0].ravel())[1:]
+                assert np.sort(sizes)[:-1].min(initial=smallest) >= smallest, (seed, size, value, sorted(sizes))
+    assert np.mean(shares) < 0.25, shares  # 0.62: 1.0; now about 0.1
+
+
+@pytest.mark.parametrize("size", [(200, 200), (300, 170), (256, 256)])
+def test_a_tileable_remix_regions_wrap_around(size):
+    """A tileable remix's field was made periodic, then each sample repeated over a 16 px cell and the
+    last cells cut to the size: at 200x200 the wrap was a straight vertical edge between two classes down
+    the whole height. Now the regions change across the wrap no more often than between neighbours inside
+    (a region across an edge is one region for the islands' rule, so none is lost there)."""
+    for seed in range(3):
+        labels = guided.random_labels(size, 2, rng=seed, tile=True)
+        for a in (labels, labels.T):
+            inside = (a[:, :-1] != a[:, 1:]).mean()
+            assert (a[:, -1] != a[:, 0]).mean() <= 3 * inside + 0.02, (seed, inside, (a[:, -1] != a[:, 0]).mean())
+        # the tiled labels' regions are as smooth as the image's own
+        assert _straight_share(np.tile(labels, (2, 2))) < 0.4
+
+
 @pytest.mark.parametrize("size", [(1, 1), (1, 2), (2, 300), (64, 256), (300, 64)])
 def test_morph_labels_go_from_all_a_to_all_b(size):
     labels = guided.morph_labels(size, rng=3, scale=24)

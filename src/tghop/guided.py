@@ -76,7 +76,7 @@ from .normals import convention_flips, flip_green
 from .quilting import block_count
 
 __all__ = ["synthesize_guided", "morph", "morph_labels", "guide_labels", "region_weights", "random_labels",
-           "DEFAULT_TRANSITION", "MAX_TRANSITION", "MORPH_BLOB", "MORPH_ISLAND"]
+           "DEFAULT_TRANSITION", "MAX_TRANSITION", "MORPH_BLOB", "MORPH_ISLAND", "REMIX_ISLAND"]
 
 #: Default width in pixels of the band around a painted edge where the join follows the textures.
 DEFAULT_TRANSITION = 32
@@ -93,6 +93,10 @@ MORPH_BLOB = 0.75
 #: near the ends mostly, which an artist takes for dirt) is given to the region around it (at 3 blob areas
 #: the share of B fell behind the position at the ends; at 1, specks of 10-20 px stayed).
 MORPH_ISLAND = 2.0
+#: A remix's smallest region, in blob areas (``scale`` squared; 2,048 px at 64 px blobs, 0.63): a smaller one,
+#: cut off by the image's edge or a lone peak of the field (specks down to a few pixels), is given to the
+#: regions around it. The smallest left are about 45x45 px, patches of the texture rather than dirt.
+REMIX_ISLAND = 0.5
 #: The warning for a morph given ``stations`` (the server's header says it too).
 STATIONS_GONE = "stations no longer applies to a morph (each region keeps its own model's statistics); leave it out"
 
@@ -464,12 +468,19 @@ def _drop_islands(labels, smallest):
         labels[small[parts]] = 1 - value
 
 
-def _upsample(field, cell, n, axis):
+def _upsample(field, cell, n, axis, wrap=False):
     """``field`` sampled on a grid of ``cell`` pixels, linearly interpolated to ``n`` pixels
-    along ``axis`` (pixel centres; ends held)."""
-    pos = np.clip((np.arange(n) + 0.5) / cell - 0.5, 0.0, field.shape[axis] - 1)
-    lo = np.floor(pos).astype(np.int64)
-    hi = np.minimum(lo + 1, field.shape[axis] - 1)
+    along ``axis`` (pixel centres; ends held). ``wrap``: the grid's samples span the ``n`` pixels
+    whatever ``cell``, periodic (the last sample's neighbour the first), so the result tiles."""
+    m = field.shape[axis]
+    if wrap:
+        pos = ((np.arange(n) + 0.5) * (m / n) - 0.5) % m
+        lo = np.floor(pos).astype(np.int64) % m
+        hi = (lo + 1) % m
+    else:
+        pos = np.clip((np.arange(n) + 0.5) / cell - 0.5, 0.0, m - 1)
+        lo = np.floor(pos).astype(np.int64)
+        hi = np.minimum(lo + 1, m - 1)
     shape = [1, 1]
     shape[axis] = n
     frac = (pos - lo).astype(field.dtype).reshape(shape)
@@ -630,7 +641,9 @@ def _as_dtype(image, dtype, scratch=False):
 
 def random_labels(size, n_models, *, rng=None, scale=_BLOB, tile=False) -> np.ndarray:
     """Random regions for a remix: a smooth random field (Gaussian of ``scale`` pixels)
-    cut at its quantiles into ``n_models`` classes of equal area; (H, W) int64.
+    cut at its quantiles into ``n_models`` classes of equal area; (H, W) int64. Regions smaller
+    than :data:`REMIX_ISLAND` blob areas (``scale`` squared), but each class's largest, are given to
+    the class around them (0.63).
 
     Parameters
     ----------
@@ -642,9 +655,10 @@ def random_labels(size, n_models, *, rng=None, scale=_BLOB, tile=False) -> np.nd
         Same seed, same regions.
     scale : float
         Size of the blobs in pixels (positive); the field is drawn on a grid of ``scale // 4``
-        pixels, smoothed and repeated up to ``size``.
+        pixels, smoothed and interpolated linearly up to ``size`` (0.62: each sample repeated over its
+        cell, outlines of cell-sized steps).
     tile : bool
-        Make the field periodic, so that the regions tile.
+        Make the field periodic, so that the regions tile (and a region across an edge is one).
 
     Returns
     -------
@@ -657,7 +671,49 @@ def random_labels(size, n_models, *, rng=None, scale=_BLOB, tile=False) -> np.nd
     rng = check_rng(rng)
     cell = max(1, int(scale) // 4)
     small = (max(1, -(-h // cell)), max(1, -(-w // cell)))
-    field = _smooth(rng.standard_normal(small), scale / cell, tile)
-    field = np.repeat(np.repeat(field, cell, axis=0), cell, axis=1)[:h, :w]
+    field = _smooth(rng.standard_normal(small), scale / cell, tile).astype(np.float32)
+    # Interpolated linearly, as a morph's (0.63): each grid sample repeated over its cell (0.62) made the
+    # outlines a staircase of cell-sized steps, which the join straightened into long horizontal and
+    # vertical edges.
+    field = _upsample(_upsample(field, cell, h, 0, tile), cell, w, 1, tile)
     cuts = np.quantile(field, np.linspace(0.0, 1.0, n_models + 1)[1:-1])
-    return np.searchsorted(cuts, field).astype(np.int64)
+    labels = np.searchsorted(cuts, field).astype(np.int64)
+    _merge_islands(labels, n_models, REMIX_ISLAND * scale ** 2, tile)
+    return labels
+
+
+def _merge_islands(labels, k, smallest, tile):
+    """Give each region of ``labels`` (classes ``0 ... k - 1``; 4-connected, across the edges with
+    ``tile``) of fewer than ``smallest`` pixels, but its class's largest, to the class most of the pixels
+    around it have, in place."""
+    from scipy import ndimage
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    cross = ndimage.generate_binary_structure(2, 1)
+    for value in range(k):
+        parts, n = ndimage.label(labels == value)
+        if n < 2:
+            continue
+        if tile:  # parts that meet across an edge are one region
+            a = np.concatenate([parts[:, 0], parts[0, :]])
+            b = np.concatenate([parts[:, -1], parts[-1, :]])
+            both = (a > 0) & (b > 0)
+            graph = coo_matrix((np.ones(int(both.sum())), (a[both], b[both])), shape=(n + 1, n + 1))
+            group = connected_components(graph, directed=False)[1]
+            group = np.where(np.arange(n + 1) == 0, 0, group - (group > group[0]) + 1)  # the others' pixels 0
+            parts = group[parts]
+        sizes = np.bincount(parts.ravel())
+        sizes[0] = 0
+        small = sizes < smallest
+        small[0] = False
+        small[sizes.argmax()] = False
+        if not small.any():
+            continue
+        ids = (np.cumsum(small) * small).astype(np.int32)[parts]  # 1, 2, ... on each small region, else 0
+        around = ndimage.maximum_filter(ids, footprint=cross, mode="wrap" if tile else "nearest")
+        ring = (around > 0) & (ids == 0)
+        votes = np.bincount(around[ring].astype(np.int64) * k + labels[ring], minlength=(int(small.sum()) + 1) * k)
+        best = votes.reshape(-1, k).argmax(axis=1)
+        island = ids > 0
+        labels[island] = best[ids[island]]
