@@ -122,6 +122,16 @@ def test_refused_before_anything_is_written(folder, args, fragments):
     assert snapshot(folder) == before  # nothing written, nothing replaced, no temporary file
 
 
+@pytest.mark.parametrize("args", [["fit", "keep.png", "-o", "m.png"], ["fit", "keep.png", "-o", "model"],
+                                  ["synth", "keep.png", "-o", "o.png", "--save-model", "m.jpg"],
+                                  ["cooc", "train", "keep.png", "-o", "ck.png"]], ids=" ".join)
+def test_a_model_file_named_otherwise_is_a_usage_error(folder, args):
+    # an option's bad value, as an image's -o x.webp (exit status 2): 0.62's model names exited 1
+    code, _, err, exc = invoke(*args, *([] if args[0] == "cooc" else FAST), cwd=folder)
+    assert_one_line(code, err, "name it", exception=exc)
+    assert code == 2, err
+
+
 def test_an_output_may_replace_a_file_that_is_not_an_input(folder):
     code, _, err, _ = invoke("synth", "model.npz", "-o", "victim.png", "--size", "40", "-q", cwd=folder)
     assert code == 0, err

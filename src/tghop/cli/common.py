@@ -613,7 +613,8 @@ def check_model_output(path: str, label: str = "-o", *, suffix: str = ".npz", wh
         fixed = p.with_suffix(suffix) if ext in READ_SUFFIXES else p.with_name(p.name + suffix)
         why = (f"{ext} is an image extension, but {label} writes a {what}" if ext in READ_SUFFIXES
                else f"a {what} file's name ends in {suffix}")
-        raise ModelFileError(f"{label} {path}: {why}; name it {fixed}")
+        # an option's bad value, as an image's -o x.webp: a usage error (0.63; 0.62: exit status 1)
+        raise click.UsageError(f"{label} {path}: {why}; name it {fixed}")
     check_output_path(path, what=what, error=ModelFileError)
 
 
