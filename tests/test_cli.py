@@ -67,6 +67,9 @@ def test_info(model_path):
 def test_patches_grid_and_stages(model_path, workdir):
     r = run("patches", model_path, "-n", "9", "-o", workdir / "grid.png", "--seed", "3", "--stages")
     assert r.returncode == 0, r.stderr.decode()
+    # the output first, then its views, as every command names its steps (0.62 named the views first)
+    assert r.stderr.decode().splitlines()[-2:] == [f"9 patches written to {workdir / 'grid.png'}",
+                                                   "stage views written beside it: grid_stages.png"]
     grid = np.asarray(Image.open(workdir / "grid.png"))
     assert grid.shape == (3 * 34 - 2, 3 * 34 - 2, 3)
     stages = np.asarray(Image.open(workdir / "grid_stages.png"))

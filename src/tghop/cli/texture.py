@@ -210,11 +210,12 @@ def patches(model_file, n, output, seed, stages, quiet):
         if stages:  # the grid and its views: both or neither (0.62)
             save_with_stages(patch_grid(samples), output, 8, {"stages": stage_sheet(views, model.patch_size)},
                              {"stages": stage_path})
-            click.echo(f"stage views written to {stage_path}", err=True)
         else:
             save_image(patch_grid(samples), output)
-    if output != "-":
+    if output != "-":  # the output first, then its views, as every command says its steps (0.63; 0.62: views first)
         click.echo(f"{n} patch{'es' if n != 1 else ''} written to {output}", err=True)
+    if stage_path:
+        click.echo(f"stage views written beside it: {Path(stage_path).name}", err=True)
 
 
 @click.command(short_help="Map which of a model's clusters each part of an exemplar falls in", epilog=examples(
