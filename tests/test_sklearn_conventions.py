@@ -600,3 +600,22 @@ def test_a_scikit_learn_users_random_state_is_told_it_is_rng(small_model):
         TGHop().set_params(random_state=0)
     with pytest.raises(TGHopError, match=r"^invalid parameter 'random_state' for Saab; valid: "):  # no rng: no hint
         Saab().set_params(random_state=0)
+
+
+@pytest.mark.parametrize("name, said", [
+    ("k1", "the command line's --k1 is n_channels=(K1, K2[, K3]) here"),
+    ("clusters", "the command line's --clusters is n_clusters here"),
+    ("fit_seed", "the command line's --fit-seed is rng here"),
+    ("layout", "the command line's --layout is layout_factor here"),
+    ("pool", "the command line's --pool is synthesize()'s n_patches, given per image: "
+             "model.synthesize(size, n_patches=...)"),
+    ("refine", "refine is synthesize()'s refine, given per image: model.synthesize(size, refine=...)"),
+])
+def test_a_command_line_users_option_name_is_told_its_python_name(name, said):
+    # a user of tghop fit --k1 9 --clusters 60 who turns to Python: 0.62 listed the valid names alone, which hold
+    # neither k1 nor fit_seed, and said nothing of a generation setting given to the estimator
+    with pytest.raises(TGHopError) as error:
+        TGHop().set_params(**{name: 1})
+    assert str(error.value).startswith(f"invalid parameter {name!r} for TGHop; {said}; valid: "), str(error.value)
+    with pytest.raises(TGHopError, match=r"^invalid parameter 'k1' for Saab; valid: "):  # not a TGHop: no hint
+        Saab().set_params(k1=0)

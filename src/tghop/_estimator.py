@@ -92,8 +92,7 @@ class BaseEstimator:
         for key, value in params.items():
             name, _, sub = key.partition("__")
             if name not in valid:
-                hint = "; scikit-learn's random_state is tghop's rng" if name == "random_state" and "rng" in valid \
-                    else ""  # 0.59
+                hint = self._unknown_param_hint(name)
                 raise TGHopError(f"invalid parameter {name!r} for {type(self).__name__}{hint}; valid: "
                                  f"{', '.join(valid)}")
             if sub:
@@ -108,6 +107,13 @@ class BaseEstimator:
                                  f"not an estimator; set {name} first")
             part.set_params(**sub_params)
         return self
+
+    def _unknown_param_hint(self, name):
+        """What :meth:`set_params` adds for an unknown parameter ``name`` before the valid ones (a subclass names
+        its command line's words for its parameters: :class:`tghop.synthesis.TGHop`)."""
+        if name == "random_state" and "rng" in self._get_param_names():
+            return "; scikit-learn's random_state is tghop's rng"  # 0.59
+        return ""
 
     def __sklearn_tags__(self):
         """scikit-learn's default tags (its ``check_is_fitted``, ``is_regressor`` and HTML repr

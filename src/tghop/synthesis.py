@@ -153,6 +153,24 @@ class TGHop(ImageInputMixin, PatchCodec, BaseEstimator):
         self.patch_whitening, self.layout_factor, self.scale = patch_whitening, layout_factor, scale
         self.rng = rng
 
+    def _unknown_param_hint(self, name):
+        """A command line's name for a parameter (``k1``, ``clusters``, ``fit_seed``) or a generation setting, which
+        is a keyword of ``synthesize``, given to :meth:`set_params`: the name to use (0.63; 0.62 listed the valid
+        ones alone)."""
+        option = "--" + name.replace("_", "-")
+        if option in ("--k1", "--k2", "--k3"):
+            return f"; the command line's {option} is n_channels=(K1, K2[, K3]) here"
+        if option == "--fit-seed":
+            return "; the command line's --fit-seed is rng here"
+        for setting in settings.SETTINGS:
+            if setting.name == name or option in setting.option_names:
+                if setting.when == "generate":
+                    said = setting.name if setting.name == name else f"the command line's {option}"
+                    return (f"; {said} is synthesize()'s {setting.name}, given per image: "
+                            f"model.synthesize(size, {setting.name}=...)")
+                return f"; the command line's {option} is {setting.name} here"
+        return super()._unknown_param_hint(name)
+
     # ---------------------------------------------------------------- fitting
     def check_settings(self):
         """Raise the :class:`TGHopError` :meth:`fit` would raise for a bad setting, fitting nothing (every
