@@ -132,6 +132,15 @@ def test_a_model_file_named_otherwise_is_a_usage_error(folder, args):
     assert code == 2, err
 
 
+def test_a_batch_into_its_own_source_folder_is_a_usage_error(tmp_path):
+    # OUTDIR that is SOURCE, an option that does not go with SOURCE (as --max-depth with a manifest): 0.62 exited 1
+    save_image(data.bricks(72, rng=2), tmp_path / "a.png")
+    code, _, err, exc = invoke("batch", "./", "-o", ".", "--workers", "1", "-q", cwd=tmp_path)
+    assert_one_line(code, err, "OUTDIR is the SOURCE folder", "give another folder", exception=exc)
+    assert code == 2, err
+    assert sorted(os.listdir(tmp_path)) == ["a.png"]
+
+
 def test_an_output_may_replace_a_file_that_is_not_an_input(folder):
     code, _, err, _ = invoke("synth", "model.npz", "-o", "victim.png", "--size", "40", "-q", cwd=folder)
     assert code == 0, err

@@ -44,11 +44,11 @@ from .contact_sheet import CONTACT_SHEET
 from .manifest import MAX_MAPS, read_manifest
 
 __all__ = ["IMAGE_SUFFIXES", "LEDGER", "RUNNING", "NAME_MAX", "HASHES", "STAT_MARGIN", "WINDOWS_RESERVED",
-           "windows_reserved", "find_work", "inputs_sha256", "inputs_stat", "input_digest", "read_hashes",
-           "write_hashes", "file_sha256", "read_ledger", "read_ledger_files", "keep_ledger_names", "check_own_files",
-           "open_ledger", "append_ledger", "sync_ledger", "compact_ledger", "COMPACT_MIN", "is_done",
-           "is_known_failure", "mark_running", "remove_stale", "find_orphans", "prune_orphans", "renamable",
-           "renamed_from", "move_renamed"]
+           "windows_reserved", "check_outdir", "find_work", "inputs_sha256", "inputs_stat", "input_digest",
+           "read_hashes", "write_hashes", "file_sha256", "read_ledger", "read_ledger_files", "keep_ledger_names",
+           "check_own_files", "open_ledger", "append_ledger", "sync_ledger", "compact_ledger", "COMPACT_MIN",
+           "is_done", "is_known_failure", "mark_running", "remove_stale", "find_orphans", "prune_orphans",
+           "renamable", "renamed_from", "move_renamed"]
 
 
 #: File extensions taken as exemplars when SOURCE is a folder: those tghop reads
@@ -245,6 +245,15 @@ def _unique_names(items):
     return items
 
 
+def check_outdir(source, outdir):
+    """Refuse an ``outdir`` that is the folder ``source`` itself (a :class:`TGHopError`; ``tghop batch`` makes it a
+    usage error, exit status 2, since 0.63)."""
+    source = Path(os.path.abspath(source))
+    if source.is_dir() and outdir is not None and Path(outdir).resolve() == source.resolve():
+        raise TGHopError(f"{source}: OUTDIR is the SOURCE folder, and the next run would take its outputs for "
+                         "exemplars; give another folder, e.g. -o " + str(source.parent / (source.name + "_out")))
+
+
 def find_work(source, outdir=None, max_depth=None):
     """The exemplars of ``source``: a folder (every image in it, recursively, ``max_depth``
     levels of subfolders at most: 0 the folder's own, None every level; hidden files,
@@ -263,9 +272,7 @@ def find_work(source, outdir=None, max_depth=None):
         raise TGHopError(f"max_depth must be an integer >= 0 (0: the folder's own images; None: every level), "
                          f"got {max_depth!r}")
     source = Path(os.path.abspath(source))  # workers may run elsewhere (another folder, another machine)
-    if source.is_dir() and outdir is not None and Path(outdir).resolve() == source.resolve():
-        raise TGHopError(f"{source}: OUTDIR is the SOURCE folder, and the next run would take its outputs for "
-                         "exemplars; give another folder, e.g. -o " + str(source.parent / (source.name + "_out")))
+    check_outdir(source, outdir)
     if source.is_dir():
         items = _scan_folder(source, outdir if outdir is not None else source / ".none", max_depth)
     elif source.is_file():

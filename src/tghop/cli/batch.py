@@ -10,6 +10,7 @@ import sys
 
 import click
 
+from .._errors import TGHopError
 from ..fit_options import fit_params
 from .common import Progress, examples, fail, quiet_tifffile, stop_message, user_errors
 from .options import MAX_COUNT, QUIET_OPTION, Size, generation_options, generation_params, model_options
@@ -143,6 +144,7 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
     mid-run: run the same command again once it is back.
     """
     from .. import batch as library
+    from ..batch_plan import check_outdir
 
     progress = BatchProgress(not quiet)
     orphans = []
@@ -155,6 +157,10 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
         if max_depth is not None and os.path.isfile(source):
             raise click.UsageError(f"--max-depth is for a folder SOURCE; the manifest {source} lists its files: drop "
                                    "--max-depth (the manifest's rows are the exemplars)")
+        try:  # options that do not go together, as --max-depth with a manifest (0.63; 0.62: exit status 1)
+            check_outdir(source, outdir)
+        except TGHopError as exc:
+            raise click.UsageError(str(exc)) from None
         generate = generation_params(options)
         fit = fit_params(options)
         quiet_tifffile()  # the exemplars read in this process (one worker); a local cluster's workers: worker_setup
