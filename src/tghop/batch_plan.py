@@ -248,8 +248,10 @@ def _unique_names(items):
 def check_outdir(source, outdir):
     """Refuse an ``outdir`` that is the folder ``source`` itself (a :class:`TGHopError`; ``tghop batch`` makes it a
     usage error, exit status 2, since 0.63)."""
+    if outdir is None or not os.fsdecode(outdir).strip():  # none, or "" (not the current folder: refused as empty)
+        return
     source = Path(os.path.abspath(source))
-    if source.is_dir() and outdir is not None and Path(outdir).resolve() == source.resolve():
+    if source.is_dir() and Path(outdir).resolve() == source.resolve():
         raise TGHopError(f"{source}: OUTDIR is the SOURCE folder, and the next run would take its outputs for "
                          "exemplars; give another folder, e.g. -o " + str(source.parent / (source.name + "_out")))
 
