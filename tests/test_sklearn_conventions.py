@@ -619,3 +619,23 @@ def test_a_command_line_users_option_name_is_told_its_python_name(name, said):
     assert str(error.value).startswith(f"invalid parameter {name!r} for TGHop; {said}; valid: "), str(error.value)
     with pytest.raises(TGHopError, match=r"^invalid parameter 'k1' for Saab; valid: "):  # not a TGHop: no hint
         Saab().set_params(k1=0)
+
+
+@pytest.mark.parametrize("make, use, said", [
+    (TGHop, lambda m: m.synthesize((64, 64)), "call 'fit' with an exemplar first (or load a fitted model with "
+                                              "tghop.modelfile.load_model)"),
+    (Material, lambda m: m.synthesize((64, 64)), "call 'fit' with an albedo and its maps first (or load a fitted "
+                                                 "material with tghop.modelfile.load_model)"),
+    (Saab, lambda m: m.transform(np.zeros((4, 12))), "call its 'fit' first, or take the fitted part of a fitted TGHop"),
+    (HopStack, lambda m: m.transform(np.zeros((2, 32, 32, 3))), "call its 'fit' first, or take the fitted part of"),
+])
+def test_before_fit_each_estimator_says_what_its_fit_takes(make, use, said):
+    # a researcher's Saab or ICHM was told "call 'fit' with an exemplar first (or load a fitted model with
+    # tghop.modelfile.load_model)" (0.62), though its fit takes arrays and no model file holds one alone;
+    # a Material's fit takes an albedo and its maps
+    from tghop import NotFittedError
+
+    with pytest.raises(NotFittedError) as error:
+        use(make())
+    assert str(error.value) == f"this {make.__name__} is not fitted yet; {said}" or \
+        str(error.value).startswith(f"this {make.__name__} is not fitted yet; {said}"), str(error.value)

@@ -33,6 +33,18 @@ __all__ = [
 ]
 
 
+#: What :func:`check_is_fitted` says to do about a component fitted on arrays (a Saab, an ICHM), whose ``fit`` takes
+#: no exemplar and no model file holds alone (0.63; 0.62 said "call 'fit' with an exemplar first (or load a fitted
+#: model with tghop.modelfile.load_model)" to every estimator).
+NOT_FITTED_HINT = ("call its 'fit' first, or take the fitted part of a fitted TGHop (model.hops_, model.sdr_, "
+                   "model.ichm_, ...)")
+#: ... and about one whose ``fit`` takes an image (:class:`ImageInputMixin`).
+NOT_FITTED_IMAGE_HINT = "call 'fit' with an exemplar first"
+#: ... and about a model that a model file holds (:class:`~tghop.synthesis.TGHop`, :class:`~tghop.material.Material`).
+NOT_FITTED_MODEL_HINT = ("call 'fit' with an exemplar first (or load a fitted model with "
+                         "tghop.modelfile.load_model)")
+
+
 class BaseEstimator:
     """The part of scikit-learn's ``BaseEstimator`` tghop uses: ``get_params``,
     ``set_params`` and a repr of the changed parameters.
@@ -215,6 +227,8 @@ class ImageInputMixin:
     (``input_tags.two_d_array`` False, ``three_d_array`` True), so that its ``check_estimator`` skips the estimator
     (0.60; 0.59's tags said 2-D arrays, and 28 or 29 of its 41 checks failed on each)."""
 
+    _not_fitted_hint = NOT_FITTED_IMAGE_HINT
+
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()
         tags.input_tags.two_d_array = False
@@ -248,10 +262,8 @@ def check_is_fitted(estimator, attributes) -> None:
         raise TGHopError(f"expected a fitted model, got {type(estimator).__name__} {str(estimator)[:60]!r} "
                          "(a model file is read by tghop.modelfile.load_model)")
     if not all(name in vars(estimator) for name in names):
-        raise NotFittedError(
-            f"this {type(estimator).__name__} is not fitted yet; call 'fit' with an exemplar first "
-            "(or load a fitted model with tghop.modelfile.load_model)"
-        )
+        raise NotFittedError(f"this {type(estimator).__name__} is not fitted yet; "
+                             f"{getattr(estimator, '_not_fitted_hint', NOT_FITTED_HINT)}")
     fitted = vars(estimator).get("_fitted_params")  # kept by TGHop.fit and load: the settings of its state
     if fitted is not None:
         now = fitted_settings(estimator)

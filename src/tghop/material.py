@@ -232,6 +232,10 @@ class Material(ImageInputMixin, BaseEstimator):
         the other maps.
     """
 
+    # what to do before fit (0.63; 0.62 said "with an exemplar", where Material.fit takes an albedo and its maps)
+    _not_fitted_hint = ("call 'fit' with an albedo and its maps first (or load a fitted material with "
+                        "tghop.modelfile.load_model)")
+
     def __init__(self, model=None, normal="auto", rng=None):
         self.model = model
         self.normal = normal

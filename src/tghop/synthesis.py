@@ -37,8 +37,8 @@ import numpy as np
 
 from . import generation, settings
 from ._errors import TGHopError, check_progress
-from ._estimator import (BaseEstimator, ImageInputMixin, check_is_fitted, check_keywords, check_rng, fit_part,
-                         fitted_settings)
+from ._estimator import (NOT_FITTED_MODEL_HINT, BaseEstimator, ImageInputMixin, check_is_fitted, check_keywords,
+                         check_rng, fit_part, fitted_settings)
 from ._images import check_image, grey_as_rgb
 from ._progress import report
 from ._resources import one_blas_thread
@@ -152,6 +152,8 @@ class TGHop(ImageInputMixin, PatchCodec, BaseEstimator):
         self.band_orientations, self.colour_classes, self.patch_levels = band_orientations, colour_classes, patch_levels
         self.patch_whitening, self.layout_factor, self.scale = patch_whitening, layout_factor, scale
         self.rng = rng
+
+    _not_fitted_hint = NOT_FITTED_MODEL_HINT  # a model file holds one
 
     def _unknown_param_hint(self, name):
         """A command line's name for a parameter (``k1``, ``clusters``, ``fit_seed``) or a generation setting, which
