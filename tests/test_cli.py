@@ -334,6 +334,7 @@ def test_evaluate_without_torch_skips_with_note(workdir):
     out, err = r.stdout.decode(), r.stderr.decode()
     assert "swd" in out and "sifid" not in out
     assert "sifid skipped" in err and "tghop[metrics]" in err
+    assert "Note: gram skipped: the Gram distance needs PyTorch" in err  # 0.62: "gram skipped: The Gram distance"
     r = run_without_torch("evaluate", workdir / "bricks.png", workdir / "r.png", "--metrics", "sifid")
     assert_user_error(r, "needs PyTorch")
 

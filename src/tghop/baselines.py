@@ -404,7 +404,7 @@ def ustyuzhaninov(
     about 2 GB of memory at 256 x 256 (:func:`memory_estimate`; larger sizes than the
     memory available are refused before any work). PyTorch's thread count is left as configured.
     """
-    torch = import_torch("The Ustyuzhaninov et al. baseline")
+    torch = import_torch("the Ustyuzhaninov et al. baseline")
     img = check_image(exemplar, name="exemplar")
     h, w = check_size(size, default=img.shape[:2])
     scales = check_scales(scales)

@@ -35,7 +35,7 @@ __all__ = ["MAX_CLUSTERS", "fit_colour_clusters", "soft_assign", "spread_pairs",
 
 def _torch():
     """``torch``, for the tensor paths (a one-line hint if it is missing)."""
-    return import_torch("Co-occurrence on tensors")
+    return import_torch("co-occurrence on tensors")
 
 
 #: Most colour clusters :func:`fit_colour_clusters` fits: four times the paper's largest k = 8

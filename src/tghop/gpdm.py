@@ -227,7 +227,7 @@ def gpdm(
         )
     check_memory(lambda hh, ww: gpdm_memory(img.shape, (hh, ww), n_projections=n_projections, patch_size=patch_size),
                  (h, w), what="the gpdm baseline")
-    torch = import_torch("The GPDM baseline")
+    torch = import_torch("the GPDM baseline")
     rng = check_rng(rng)
     threads = torch.get_num_threads()
     torch.set_num_threads(int(n_threads) if n_threads is not None else usable_cores())

@@ -242,7 +242,7 @@ def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, q
         overrides = usage_settings(settings, PAPER if paper else SMALL)
         if resume and (paper or overrides):
             raise click.UsageError("--resume continues a checkpoint with its own settings; drop --paper and --set")
-        import_torch("The co-occurrence cGAN")  # the one-line hint before the exemplar is read
+        import_torch("the co-occurrence cGAN")  # the one-line hint before the exemplar is read
         check_model_output(output, "-o", suffix=".pt", what="checkpoint")
         check_outputs([("-o", output)], [("EXEMPLAR", exemplar)])  # (--resume reads and rewrites -o on purpose)
         image = load_exemplar(exemplar)

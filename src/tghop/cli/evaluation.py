@@ -278,7 +278,7 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
                       "assembly": assembly or "quilt"}
             if model_file is None:
                 # the checks baseline() makes, made here first so that the note comes only before a training
-                import_torch("The co-occurrence cGAN")
+                import_torch("the co-occurrence cGAN")
                 check_texture(ex)
                 check_memory(memory_estimate(ex.shape, assembly=kwargs["assembly"]),
                              check_size(size, default=ex.shape[:2], name="--size"), what="the cooc baseline",

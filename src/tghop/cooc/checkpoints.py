@@ -73,7 +73,7 @@ def save(model, path) -> None:
         When ``path`` cannot be written (a folder, a missing parent, ...).
     """
     model._check_fitted()
-    torch = import_torch("The co-occurrence cGAN")
+    torch = import_torch("the co-occurrence cGAN")
     from ..imageio import check_output_path, write_atomic
 
     check_output_path(path, what="checkpoint", error=ModelFileError)
@@ -136,7 +136,7 @@ def read(path, model_class, *, device: str = "auto"):
     if not path.is_file():
         raise ModelFileError(f"{path}: no such checkpoint; check the path, or train one (CoocGAN().fit(exemplar)"
                              f".save(path), or 'tghop cooc train EXEMPLAR -o {path.name}')")
-    torch = import_torch("The co-occurrence cGAN")
+    torch = import_torch("the co-occurrence cGAN")
     torch_device(torch, device)  # a bad device named as such, not as a corrupt file
     check_archive_bounds(path, path, "a checkpoint", "give a checkpoint 'tghop cooc train' wrote, or train it again")
     try:

@@ -157,7 +157,7 @@ class GenerationMixin:
         ndarray, shape (N, h*s, w*s, C), float64 in [0, 1]
         """
         self._check_fitted()
-        torch = import_torch("The co-occurrence cGAN")
+        torch = import_torch("the co-occurrence cGAN")
         conds = [self._check_cond(c) for c in conds]
         if not conds:
             raise TGHopError("conds is empty: give at least one co-occurrence tensor")
@@ -226,7 +226,7 @@ class GenerationMixin:
         ndarray, shape (h * s, w * s, C), float64 in [0, 1]
         """
         self._check_fitted()
-        torch = import_torch("The co-occurrence cGAN")
+        torch = import_torch("the co-occurrence cGAN")
         cond = self._check_cond(cond)
         k2, h, w = cond.shape
         n, s = self._window_cells, self.s

@@ -226,7 +226,7 @@ class CoocGAN(ImageInputMixin, TrainingMixin, GenerationMixin, BaseEstimator):
             Unnormalised (each cell sums to 1): the form :meth:`generate` takes.
         """
         self._check_fitted()
-        torch = import_torch("The co-occurrence cGAN")
+        torch = import_torch("the co-occurrence cGAN")
         img = self._check_colours(check_image(image, min_size=self.s, name="image"))
         s, p = self.s, self.settings_
         hh, ww = img.shape[0] // s, img.shape[1] // s
@@ -267,7 +267,7 @@ class CoocGAN(ImageInputMixin, TrainingMixin, GenerationMixin, BaseEstimator):
         -------
         ndarray, shape (k*k, cells, cells), float64
         """
-        torch = import_torch("The co-occurrence cGAN")
+        torch = import_torch("the co-occurrence cGAN")
         t = self.cooccurrence(image)
         n = max(1, int(self.settings_["crop_size"]) // self.s) if cells is None else check_int(cells, "cells")
         pooled = torch.nn.functional.adaptive_avg_pool2d(torch.as_tensor(t)[None], (n, n))[0]

@@ -128,7 +128,7 @@ class TrainingMixin:
         """
         if max_seconds is not None and not (isinstance(max_seconds, numbers.Real) and max_seconds > 0):
             raise TGHopError(f"max_seconds must be a number of seconds above 0, or None, got {max_seconds!r}")
-        torch = import_torch("The co-occurrence cGAN")
+        torch = import_torch("the co-occurrence cGAN")
         img = check_image(exemplar, name="exemplar")
         check_texture(img)  # a flat image has nothing to learn: refused before any training, as fit's
         if resume:

@@ -344,7 +344,7 @@ def gram_distance(
     for the whole process, images included, against over 16 GB in one piece).
     """
     seed, n_maps = check_seed(seed), check_int(n_maps, "n_maps")
-    torch = import_torch("The Gram distance")
+    torch = import_torch("the Gram distance")
     ex, res = pair(exemplar, result)
     check_texture(ex)  # a flat exemplar's Gram matrix is rounding residue: the ratio was about 1e23
     smallest = min(ex.shape[0], ex.shape[1], res.shape[0], res.shape[1])
