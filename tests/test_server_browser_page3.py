@@ -64,3 +64,101 @@ def test_the_last_long_helps_are_cut_to_two_lines_in_a_narrow_window(page, tiny_
     assert page.evaluate("!document.getElementById('quality-off').closest('.help.long')")
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
+
+
+def caption_is(page, caption):
+    page.wait_for_function("(c) => document.getElementById('result-caption').textContent === c &&"
+                           " document.getElementById('editor').dataset.ready === '1'", arg=caption, timeout=60_000)
+
+
+def extend(page, caption):
+    page.click("#extend-go")
+    caption_is(page, caption)
+
+
+def grow_to(page):
+    return [page.input_value("#extend-height"), page.input_value("#extend-width")]
+
+
+def test_extends_fields_follow_the_picture_shown_after_an_undo(page):
+    # An Extend undone put its size back in the "grow to" fields, a size for the picture brought back; kept when
+    # another picture was shown next (the extension again from Recent results, a new result), Extend refused it as
+    # no larger than that picture (0.62).
+    chromium.load_fresh(page, FAST_FIT)
+    chromium.fit_builtin(page, "bricks")
+    for field, value in (("height", "48"), ("width", "64"), ("seed", "3"), ("n_patches", "300")):
+        page.fill(f"#{field}", value)
+    page.click("#go")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 48x64, seed 3'",
+                           timeout=60_000)
+    chromium.choose_mode(page, "inpaint")
+    page.fill("#inpaint-seed", "2")
+    page.fill("#extend-width", "96")
+    extend(page, "extended: 48x96, seed 2")
+    assert grow_to(page) == ["48", "128"]
+    page.click("#undo")
+    caption_is(page, "result: 48x64, seed 3")
+    assert grow_to(page) == ["48", "96"]  # that Extend, to try again (0.57)
+    page.click("#history figure:first-child button.history-item")  # the extension, shown again
+    caption_is(page, "extended: 48x96, seed 2")
+    assert grow_to(page) == ["48", "128"]  # grown as much again from it
+    extend(page, "extended: 48x128, seed 2")
+    assert not page.eval_on_selector("#inpaint-message", "e => e.classList.contains('error')")
+    page.click("#undo")
+    caption_is(page, "extended: 48x96, seed 2")
+    assert grow_to(page) == ["48", "128"]
+    # A new result of another size: the same step from it
+    chromium.choose_mode(page, "view")
+    page.fill("#height", "64")
+    page.click("#go")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 64x64, seed 3'",
+                           timeout=60_000)
+    chromium.choose_mode(page, "inpaint")
+    page.wait_for_selector("#editor[data-ready='1']")
+    assert grow_to(page) == ["64", "96"]
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors
+
+
+def test_a_strip_of_fills_cut_by_the_server_gone_says_its_warnings_and_the_fix(page, tmp_path):
+    # Fill 2 of 3 failing dropped the server's warning of fill 1 (its picture's colour profile converted) from the
+    # line that said what came (0.62), and a server gone was the browser's bare "Failed to fetch".
+    from PIL import Image
+    from test_profiles import P3
+
+    from conftest import save_texture
+
+    server = LiveServer(tmp_path / "cache")
+    home = page.url
+    try:
+        page.goto(server.url + "/")
+        page.wait_for_selector("body[data-ready='1']")
+        save_texture(tmp_path / "wall.npz")
+        chromium.upload_model(page, tmp_path / "wall.npz")
+        chromium.choose_mode(page, "inpaint")
+        buf = io.BytesIO()
+        Image.fromarray(np.random.default_rng(0).integers(0, 256, (40, 40, 3), dtype=np.uint8)).save(
+            buf, format="PNG", icc_profile=P3)
+        page.set_input_files("#picture", files=[{"name": "p3.png", "mimeType": "image/png", "buffer": buf.getvalue()}])
+        page.wait_for_function("editor.name === 'p3.png' && document.getElementById('editor').dataset.ready === '1'")
+        hole = np.zeros((40, 40), np.uint8)
+        hole[10:20, 10:30] = 255
+        page.set_input_files("#mask-file", files=[{"name": "hole.png", "mimeType": "image/png", "buffer": png(hole)}])
+        page.fill("#inpaint-seed", "2")
+        page.fill("#inpaint-count", "3")
+        with chromium.HeldAnswers(page, "**/api/models/*/inpaint") as held:
+            page.click("#fill")
+            held.wait()  # fill 1 made; the server stops before the page asks for fill 2
+            server.stop()
+        page.wait_for_function("document.getElementById('fill').textContent === 'Fill'", timeout=60_000)
+        said = page.text_content("#inpaint-message")
+        assert said.startswith("fill 2 of 3 failed: the server did not answer (") and (
+            "is tghop serve still running? Start it again, then try again; fill 1 is under the picture, fill 1 shown "
+            "(click one to pick it); Undo goes back to the picture before. Warning: p3.png: colours converted to sRGB "
+            "from its colour profile 'Test P3'; ") in said, said
+        assert page.text_content("#result-caption") == "inpainted: 40x40, seed 2, fill 1"
+    finally:
+        server.stop()
+        page.goto(home)
+        page.wait_for_selector("body[data-ready='1']")
+        page.errors.clear()  # the server gone: the browser's errors of the requests it refused

@@ -156,6 +156,7 @@ async function init() {
   document.addEventListener("keydown", onUndoKey);
   $("fill").addEventListener("click", onFill);
   $("extend-go").addEventListener("click", onExtend);
+  for (const id of ["extend-height", "extend-width"]) $(id).addEventListener("input", growTyped);
   $("picture").addEventListener("change", (e) => onPicture(e.target.files[0]));
   // Each chooser emptied once read, as above
   $("mask-file").addEventListener("change", (e) => { onMaskFile(e.target.files[0]); e.target.value = ""; });

@@ -31,7 +31,7 @@ const state = { modelId: null, job: null, events: null, resultUrl: null, exempla
 // `history`: what Undo goes back to, the latest last (inpaint.js); `pendingMask`: a mask put back once the
 // picture loads; `fills`: the last strip of fills' run (inpaint.js, fillStrip: whether it is still coming).
 const editor = { blob: null, url: null, name: "picture.png", last: null, painting: false, maps: null, history: [],
-  pendingMask: null, fills: null };
+  pendingMask: null, fills: null, growFrom: null };  // growFrom: the picture's size Extend's fields were set for
 
 // The 2d context of a canvas whose pixels are read back (getImageData: the mask at each Fill, the boards and
 // the tiling by the tests): made for it, or Chromium warns that it is slow. The first getContext sets it.
@@ -112,9 +112,20 @@ async function withBusy(button, work, report) {
   }
 }
 
-// fetch() that the Stop of withBusy aborts.
-function busyFetch(url, options) {
-  return fetch(url, { ...options, signal: state.abort ? state.abort.signal : undefined });
+// fetch() that the Stop of withBusy aborts. No answer at all (the server stopped, its terminal closed) is said with the
+// fix (noAnswer), not as the browser's bare "Failed to fetch" (0.62).
+async function busyFetch(url, options) {
+  try {
+    return await fetch(url, { ...options, signal: state.abort ? state.abort.signal : undefined });
+  } catch (e) {
+    if (e.name === "AbortError") throw e;  // Stop
+    throw new Error(noAnswer(e));
+  }
+}
+
+// A request the server did not answer (fetch's TypeError `e`): said with what to do.
+function noAnswer(e) {
+  return `the server did not answer (${e.message}): is tghop serve still running? Start it again, then try again`;
 }
 
 // A generation's request headers: a material's maps come as multipart (Response.formData() reads it:

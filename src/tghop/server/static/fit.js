@@ -505,7 +505,7 @@ async function startFit(form, undo, note = "") {
     response = await fetch("/api/models", { method: "POST", body: form });
   } catch (e) {
     if (request !== state.fitRequest) return;
-    backToWorking(`the server did not answer (${e.message})`, undo);
+    backToWorking(noAnswer(e), undo);
     return;
   }
   if (!response.ok) {
@@ -690,7 +690,7 @@ async function uploadModel(file) {
     form.append("model", file);
     response = await fetch("/api/models/upload", { method: "POST", body: form });
   } catch (e) {
-    if (request === state.fitRequest) backToWorking(`the server did not answer (${e.message})`, undo);
+    if (request === state.fitRequest) backToWorking(noAnswer(e), undo);
     return;
   }
   if (!response.ok) {

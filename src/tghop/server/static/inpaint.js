@@ -32,6 +32,7 @@ function setEditorPicture(blob, name, maps) {
     canvas.height = h;
     $("extend-height").placeholder = String(h);  // Extend's fields start from the picture's size
     $("extend-width").placeholder = String(w);
+    followPicture(h, w);
     clearMask();
     if (editor.pendingMask && editor.pendingMask.width === w && editor.pendingMask.height === h) {
       context2d(canvas).putImageData(editor.pendingMask, 0, 0);  // an undone Fill's hole
@@ -51,6 +52,27 @@ function setEditorPicture(blob, name, maps) {
   img.src = editor.url;
   updateButtons();
   inpaintHint();
+}
+
+// Extend's "grow to" fields follow the picture to paint on (0.63): a size set for one picture (by Extend, by its Undo,
+// or typed) moves with the next picture of another size (another result, one of Recent results, one an Undo brought
+// back), grown by the same step. 0.62 kept the size, and Extend refused it as no larger than the new picture.
+function followPicture(h, w) {
+  const from = editor.growFrom;
+  editor.growFrom = [h, w];
+  if (!from || (from[0] === h && from[1] === w)) return;
+  let moved = false;
+  for (const [field, was, now] of [[$("extend-height"), from[0], h], [$("extend-width"), from[1], w]]) {
+    const value = Number(field.value.trim() || NaN);  // empty: the picture's own size (its placeholder)
+    if (Number.isFinite(value)) { field.value = String(Math.max(now, value - was + now)); moved = true; }
+  }
+  if (moved) keepFields();  // across a reload too (history.js)
+}
+
+// A size typed in Extend's fields is one for the picture shown now (followPicture).
+function growTyped() {
+  const img = $("editor-base");
+  editor.growFrom = editor.blob && img.naturalWidth ? [img.naturalHeight, img.naturalWidth] : null;
 }
 
 // Small pictures are shown larger (up to 3 times, at most 640 pixels wide) to paint on; while Inpaint is shown, no
@@ -121,8 +143,9 @@ function undoInpaint() {
     setEditorPicture(p.blob, p.name, p.maps);
     showOwnPicture(p.blob, p.name);
   }
-  if (p.grow) {  // that Extend, to try again
-    [$("extend-height").value, $("extend-width").value] = p.grow;
+  if (p.grow) {  // that Extend, to try again: a size for the picture brought back
+    [$("extend-height").value, $("extend-width").value] = p.grow.to;
+    editor.growFrom = p.grow.from;
     keepFields();  // across a reload too (history.js)
   }
   editor.history = history;
@@ -339,11 +362,11 @@ async function askPicture(path, fields, seed, progress, model = { id: state.mode
 // What Undo goes back to from a Fill or Extend of the picture now in the editor: that picture (the result shown, or a
 // picture of the user's) and its hole.
 function stepBefore(path, size) {
-  const canvas = $("mask");
+  const canvas = $("mask"), img = $("editor-base");
   return { mask: context2d(canvas).getImageData(0, 0, canvas.width, canvas.height), picture: {
     blob: editor.blob, name: editor.name, maps: editor.maps, undone: path === "inpaint" ? "fill" : "extend",
     shown: state.lastShown && state.lastShown.blob === editor.blob ? state.lastShown : null,
-    grow: path === "extend" ? size.map(String) : null } };
+    grow: path === "extend" ? { to: size.map(String), from: [img.naturalHeight, img.naturalWidth] } : null } };
 }
 
 // A fill or extension (askPicture's answer) shown as the result, Undo going back to `before` after `history` (the
@@ -412,7 +435,8 @@ async function fillStrip(mask, count, size) {
     }
     if (!run.dropped && shown) {  // an error after some came: those kept, fill 1 shown, as Stop does, and the error
       shown.click();  // said in the same line (0.61 kept them in the strip but showed none, the error alone)
-      throw new Error(`fill ${k} of ${count} failed: ${e.message.replace(/\.$/, "")}; ${came}`);
+      // with the server's warnings of the fills that came, as a finished or stopped strip says them (0.62 dropped them)
+      throw new Error(withWarning(`fill ${k} of ${count} failed: ${e.message.replace(/\.$/, "")}; ${came}`, warned));
     }
     if (!run.dropped) throw e;  // stopped before any came, or an error before any: said as any Fill's
     return [null, `the fills stopped at fill ${k} of ${count}: another mode or model was chosen, and their strip went`];
@@ -465,6 +489,7 @@ function onExtend() {
     // The fields go on to the next size, grown as much again: Extend pressed again is not refused as the picture's size
     const next = [2 * Number(h) - ph, 2 * Number(w) - pw].map(String);
     [$("extend-height").value, $("extend-width").value] = next;
+    editor.growFrom = [Number(h), Number(w)];  // the picture just made
     keepFields();
     sayInpaint(withWarning(`extended to ${h}x${w} (seed ${used}): paint to fill, Extend again to grow it as much ` +
                            `again (to ${next.join("x")}), or download it`, warning));
