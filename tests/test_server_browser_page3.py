@@ -57,6 +57,9 @@ def test_the_last_long_helps_are_cut_to_two_lines_in_a_narrow_window(page, tiny_
             assert lines(page, help) > 2 and button.text_content() == "less", help
             button.click()
             assert lines(page, help) == 2, help
+        # quality's "more" on a line of its own, above Generate (beside it, it read as one of the form's buttons)
+        assert page.eval_on_selector("#quality-help + button.more-help", "b => b.getBoundingClientRect().bottom") <= \
+            page.eval_on_selector("#go", "b => b.getBoundingClientRect().top")
     with window(page, 1024, 700):
         for help in helps:
             assert lines(page, help) >= 2 and not page.evaluate_handle(more, help).as_element().is_visible(), help
