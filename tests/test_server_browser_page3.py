@@ -165,3 +165,21 @@ def test_a_strip_of_fills_cut_by_the_server_gone_says_its_warnings_and_the_fix(p
         page.goto(home)
         page.wait_for_selector("body[data-ready='1']")
         page.errors.clear()  # the server gone: the browser's errors of the requests it refused
+
+
+def test_the_built_in_menu_shows_no_built_in_for_a_model_file(page, tmp_path):
+    # A model file loaded after builtin:cells left the menu showing builtin:cells beside the file's model (0.62),
+    # as if cells were the working model's exemplar; a refused file puts it back with the model that stays.
+    from conftest import save_texture
+
+    chromium.load_fresh(page, FAST_FIT)
+    chromium.fit_builtin(page, "cells")
+    save_texture(tmp_path / "wall.npz")
+    chromium.upload_model(page, tmp_path / "wall.npz")
+    assert page.input_value("#builtin") == ""
+    chromium.fit_builtin(page, "cells")
+    (tmp_path / "broken.npz").write_bytes(b"not a model file")
+    page.set_input_files("#model-file", str(tmp_path / "broken.npz"))
+    chromium.wait_said(page, "broken.npz was not used; the model of builtin:cells stays")
+    assert page.input_value("#builtin") == "cells"
+    page.errors.clear()  # the refusal: Chromium logs its 4xx as a console error

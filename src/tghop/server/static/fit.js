@@ -677,6 +677,7 @@ async function uploadModel(file) {
   const undo = { mapFiles: state.mapFiles, held: heldNow(), name: file.name };
   clearOthersMaps(null, "the model file's");
   state.source = null;
+  $("builtin").value = "";  // the menu shows the working model's exemplar: none (0.62 kept the built-in before)
   $("fit-status").hidden = true;
   $("summary").hidden = true;  // the model it replaces: not what is loaded, whatever the answer
   setExemplar(null);
