@@ -183,3 +183,26 @@ def test_the_built_in_menu_shows_no_built_in_for_a_model_file(page, tmp_path):
     chromium.wait_said(page, "broken.npz was not used; the model of builtin:cells stays")
     assert page.input_value("#builtin") == "cells"
     page.errors.clear()  # the refusal: Chromium logs its 4xx as a console error
+
+
+def in_sight(page, selector):
+    return page.eval_on_selector(selector, "e => { const r = e.getBoundingClientRect();"
+                                 " return r.top >= 0 && r.bottom <= window.innerHeight; }")
+
+
+def test_a_fit_and_an_upload_show_their_progress_in_a_narrow_window(page, tmp_path):
+    # At 400x800 with the fit settings open, a built-in picked fitted below the fold: its bar, Cancel and "model
+    # ready" out of sight, the pick seeming to do nothing (0.62); so did a model file's "uploading" and "loaded".
+    from conftest import save_texture
+
+    chromium.load_fresh(page, FAST_FIT)  # the fit settings open
+    save_texture(tmp_path / "wall.npz")
+    with window(page, 400, 800):
+        page.select_option("#builtin", "bricks")
+        page.wait_for_selector("#fit-status:not([hidden])")
+        assert in_sight(page, "#fit-status") and in_sight(page, "#message")
+        chromium.fit_builtin(page, "bricks")
+        page.evaluate("window.scrollTo(0, 0)")
+        chromium.upload_model(page, tmp_path / "wall.npz")
+        assert in_sight(page, "#message") and page.text_content("#message").startswith("model wall.npz loaded")
+    assert not page.errors, page.errors

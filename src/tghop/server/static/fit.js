@@ -486,6 +486,15 @@ function onPageHide() {
   }
 }
 
+// The fit's bar, its Cancel and the message under them brought into sight where they are out of it (0.63: at 400x800
+// with the fit settings open they came below the fold, and a pick seemed to do nothing).
+function fitInSight() {
+  const status = $("fit-status"), message = $("message");
+  const top = (status.hidden ? message : status).getBoundingClientRect().top;
+  const below = message.getBoundingClientRect().bottom > window.innerHeight;
+  if (top < 0 || below) message.scrollIntoView({ block: "nearest" });
+}
+
 // `undo`: how to go back when the fit is refused or cancelled (backToWorking); `note`: said with "model ready".
 async function startFit(form, undo, note = "") {
   dropRunningFit();
@@ -498,6 +507,7 @@ async function startFit(form, undo, note = "") {
   delete $("fit-status").dataset.state;  // set again when this fit ends
   $("progress").value = 0;
   showStage($("progress"), $("stage"), "sending");
+  fitInSight();
   $("cancel").disabled = false;
   say("");
   let response;
@@ -683,6 +693,7 @@ async function uploadModel(file) {
   setExemplar(null);
   setModel(null);
   say(`uploading ${file.name}`);
+  fitInSight();
   let response;
   try {
     // the field `model` with the file's name, so that the server's messages name it (0.61 sent the bare body:
