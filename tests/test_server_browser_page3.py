@@ -123,7 +123,7 @@ def test_extends_fields_follow_the_picture_shown_after_an_undo(page):
     assert not page.errors, page.errors
 
 
-def test_a_strip_of_fills_cut_by_the_server_gone_says_its_warnings_and_the_fix(page, tmp_path):
+def test_a_strip_of_fills_cut_by_the_server_gone_says_its_warnings_and_the_fix(page, tmp_path, tiny_cooc_checkpoint):
     # Fill 2 of 3 failing dropped the server's warning of fill 1 (its picture's colour profile converted) from the
     # line that said what came (0.62), and a server gone was the browser's bare "Failed to fetch".
     from PIL import Image
@@ -160,6 +160,15 @@ def test_a_strip_of_fills_cut_by_the_server_gone_says_its_warnings_and_the_fix(p
             "(click one to pick it); Undo goes back to the picture before. Warning: p3.png: colours converted to sRGB "
             "from its colour profile 'Test P3'; ") in said, said
         assert page.text_content("#result-caption") == "inpainted: 40x40, seed 2, fill 1"
+        # A checkpoint loaded then: said so, not "uploading tiny.pt" for good and an error on the console (0.62)
+        chromium.choose_mode(page, "cooc")
+        page.errors.clear()
+        page.set_input_files("#cooc-file", str(tiny_cooc_checkpoint))
+        page.wait_for_function("document.getElementById('cooc-message').classList.contains('error')")
+        said = page.text_content("#cooc-message")
+        assert said.startswith("the server did not answer (") and said.endswith(
+            "is tghop serve still running? Start it again, then try again"), said
+        assert not [e for e in page.errors if "Uncaught" in e or "Failed to fetch" in e], page.errors
     finally:
         server.stop()
         page.goto(home)

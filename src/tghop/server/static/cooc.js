@@ -58,17 +58,36 @@ function sizeCoocBoard() {
   return fits;
 }
 
+// A checkpoint loaded; what went wrong said in the mode's message (0.63: a server that did not answer left "uploading
+// NAME" said for good, the browser's error on its console alone).
 async function uploadCooc(file) {
+  try {
+    await loadCooc(file);
+  } catch (e) {
+    sayCooc(e.message, true);
+  }
+}
+
+// fetch() of the co-occurrence routes, no answer said with the fix (noAnswer).
+async function coocFetch(url, options) {
+  try {
+    return await fetch(url, options);
+  } catch (e) {
+    throw new Error(noAnswer(e));
+  }
+}
+
+async function loadCooc(file) {
   if (!file) return;
   const radio = $("mode-cooc");
   if (!radio.checked) { radio.checked = true; setMode("cooc"); }
   sayCooc(`uploading ${file.name}`);
-  const response = await fetch("/api/cooc", {
+  const response = await coocFetch("/api/cooc", {
     method: "POST", body: file, headers: { "Content-Type": "application/octet-stream" },
   });
   if (!response.ok) { sayCooc(await errorOf(response), true); return; }
   const { id, notes } = await response.json();  // notes: what reading the file warned of, as a model upload's
-  const info = await fetch(`/api/cooc/${id}`);
+  const info = await coocFetch(`/api/cooc/${id}`);
   if (!info.ok) { sayCooc(await errorOf(info), true); return; }
   cooc.id = id;
   cooc.info = await info.json();
