@@ -215,3 +215,33 @@ def test_a_fit_and_an_upload_show_their_progress_in_a_narrow_window(page, tmp_pa
         chromium.upload_model(page, tmp_path / "wall.npz")
         assert in_sight(page, "#message") and page.text_content("#message").startswith("model wall.npz loaded")
     assert not page.errors, page.errors
+
+
+def test_enter_in_a_modes_field_presses_its_button(page):
+    # Enter in a field of Generate generated, but in Inpaint's, Extend's, Paint's, Morph's or Co-occurrence's fields
+    # it did nothing (0.62): the artist typing a size or a seed had to reach for the mouse.
+    chromium.load_fresh(page, FAST_FIT)
+    chromium.fit_builtin(page, "bricks")
+    for field, value in (("height", "48"), ("width", "64"), ("seed", "3"), ("n_patches", "300")):
+        page.fill(f"#{field}", value)
+    page.press("#seed", "Enter")  # as before
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'result: 48x64, seed 3'",
+                           timeout=60_000)
+    chromium.choose_mode(page, "inpaint")
+    page.wait_for_selector("#editor[data-ready='1']")
+    page.fill("#inpaint-seed", "2")
+    page.press("#inpaint-seed", "Enter")  # Fill, with no hole painted: said
+    page.wait_for_function("document.getElementById('inpaint-message').textContent.startsWith('paint the hole first')")
+    page.fill("#extend-width", "80")
+    page.press("#extend-width", "Enter")
+    caption_is(page, "extended: 48x80, seed 2")
+    chromium.choose_mode(page, "view")
+    chromium.fit_builtin(page, "cells")
+    chromium.choose_mode(page, "morph")
+    page.fill("#morph-height", "32")
+    page.fill("#morph-width", "40")
+    page.press("#morph-width", "Enter")
+    page.wait_for_function("document.getElementById('result-caption').textContent === 'morph: 32x40, seed 1 (bricks "
+                           "to cells)'", timeout=60_000)
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors

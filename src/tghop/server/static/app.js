@@ -115,6 +115,23 @@ function wireLongHelp() {
   }
 }
 
+// Enter in a mode's field presses the mode's button, as Enter in a field of Generate generates (0.63; 0.62 did
+// nothing): not while a work runs (its button reads Stop), nor when the button is off.
+const ENTER_PRESSES = {
+  "inpaint-seed": "fill", "inpaint-count": "fill", "extend-height": "extend-go", "extend-width": "extend-go",
+  transition: "paint-go", "paint-seed": "paint-go", "morph-height": "morph-go", "morph-width": "morph-go",
+  "morph-seed": "morph-go", "cooc-length": "cooc-morph-go", "cooc-morph-seed": "cooc-morph-go",
+  "cooc-boost-a": "cooc-edit-go", "cooc-boost-b": "cooc-edit-go", "cooc-boost-factor": "cooc-edit-go",
+  "cooc-edit-seed": "cooc-edit-go",
+};
+
+function onEnterKey(event) {
+  const go = event.key === "Enter" && !event.isComposing && $(ENTER_PRESSES[event.target.id] || "");
+  if (!go || state.busy || go.disabled) return;
+  event.preventDefault();
+  go.click();
+}
+
 // The keys that move a closed select's choice: arrows, Home, End, Page Up and Down, a letter or digit (type-ahead).
 const BROWSE_KEY = /^(Arrow(Up|Down|Left|Right)|Home|End|Page(Up|Down)|\S)$/u;
 
@@ -154,6 +171,7 @@ async function init() {
   $("clear").addEventListener("click", onClear);
   $("undo").addEventListener("click", undoInpaint);
   document.addEventListener("keydown", onUndoKey);
+  document.addEventListener("keydown", onEnterKey);
   $("fill").addEventListener("click", onFill);
   $("extend-go").addEventListener("click", onExtend);
   for (const id of ["extend-height", "extend-width"]) $(id).addEventListener("input", growTyped);
