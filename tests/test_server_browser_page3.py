@@ -245,3 +245,28 @@ def test_enter_in_a_modes_field_presses_its_button(page):
                            "to cells)'", timeout=60_000)
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
+
+
+def test_inpaints_undo_of_a_stroke_or_a_clear_says_so(page):
+    # Undo of a stroke changed only the mask: the line before stayed, "fill undone: the picture before it, with its
+    # hole" after a stroke painted on that picture was undone (0.62).
+    chromium.load_empty(page)
+    chromium.choose_mode(page, "inpaint")
+    page.set_input_files("#picture", files=[{"name": "mine.png", "mimeType": "image/png",
+                                             "buffer": png(np.full((48, 64, 3), 90, np.uint8))}])
+    page.wait_for_selector("#editor[data-ready='1']")
+    box = page.locator("#mask").bounding_box()
+    for y in (0.3, 0.7):
+        page.mouse.move(box["x"] + 10, box["y"] + box["height"] * y)
+        page.mouse.down()
+        page.mouse.move(box["x"] + box["width"] - 10, box["y"] + box["height"] * y, steps=4)
+        page.mouse.up()
+    page.click("#clear")
+    said = []
+    for _ in range(3):
+        page.click("#undo")
+        said.append(page.text_content("#inpaint-message"))
+    assert said == ["Clear undone", "a stroke undone", "a stroke undone (nothing more to undo)"], said
+    assert page.is_disabled("#undo")
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors

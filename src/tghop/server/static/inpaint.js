@@ -119,10 +119,11 @@ function clearMask() {
 // or Extend: a fill that came out badly is tried again (another seed) without painting its hole again.
 const UNDO_STEPS = 20;
 
-function remember(picture) {
+// `what`: the step's name, said when it is undone ("a stroke", "Clear", "the mask file").
+function remember(picture, what) {
   const canvas = $("mask");
   if (!canvas.width) return;
-  editor.history.push({ mask: context2d(canvas).getImageData(0, 0, canvas.width, canvas.height), picture });
+  editor.history.push({ mask: context2d(canvas).getImageData(0, 0, canvas.width, canvas.height), picture, what });
   if (editor.history.length > UNDO_STEPS) editor.history.shift();
   updateButtons();
 }
@@ -134,6 +135,8 @@ function undoInpaint() {
   if (!step.picture) {
     context2d($("mask")).putImageData(step.mask, 0, 0);
     updateButtons();
+    // said (0.63): 0.62 left the line before, "fill undone: ..." after a stroke undone after it
+    sayInpaint(`${step.what} undone${editor.history.length ? "" : " (nothing more to undo)"}`);
     return;
   }
   const history = editor.history, p = step.picture;  // the picture before: shown again, its hole painted
@@ -186,7 +189,7 @@ function maskPainted() {
 }
 
 function onClear() {
-  if (maskPainted()) remember(null);
+  if (maskPainted()) remember(null, "Clear");
   clearMask();
 }
 
@@ -217,7 +220,7 @@ function paint(from, to) {
 function onBrushDown(event) {
   if (event.button !== 0 || !editor.blob) return;
   event.preventDefault();
-  remember(null);
+  remember(null, "a stroke");
   $("mask").setPointerCapture(event.pointerId);
   editor.painting = true;
   editor.last = brushPoint(event);
@@ -282,7 +285,7 @@ async function onMaskFile(file) {
   }
   const pixels = await filePixels(file, canvas.height, canvas.width, "mask, white where the hole is", sayInpaint);
   if (!pixels) return;
-  remember(null);
+  remember(null, `the mask ${file.name}`);
   const ctx = context2d(canvas), image = ctx.createImageData(canvas.width, canvas.height);
   for (let i = 0; i < pixels.length; i += 4) {
     if (pixels[i] + pixels[i + 1] + pixels[i + 2] > 1.5 * 255) image.data.set([255, 0, 230, 255], i);  // #ff00e6
