@@ -294,7 +294,12 @@ async function thumbInView(id) {
 
 // A thumbnail's click: the result itself scrolled into view.
 function goToPainted() {
-  $("result").scrollIntoView({ block: "nearest" });
+  const result = $("result");
+  result.scrollIntoView({ block: "nearest" });
+  // whole: a result whose foot lies between two pixels (a help cut to its lines above it, 0.63) ended a fraction of
+  // a pixel under the window's foot, the scroll being whole pixels
+  const below = result.getBoundingClientRect().bottom - window.innerHeight;
+  if (below > 0 && below < 1) window.scrollBy(0, 1);
 }
 
 // What a mode's "done" line says of its result shown as a thumbnail `id` beside `canvas`: "its thumbnail beside the
