@@ -63,11 +63,14 @@ def test_a_small_exemplar_is_shown_at_a_readable_size(page, tmp_path):
     assert not page.errors, page.errors
 
 
-def generate(page, seed, size=(32, 40), tile=False, refine=""):
+def generate(page, seed, size=(32, 40), tile=False, refine="", pool=""):
+    """Generate a result of ``seed`` at ``size`` and wait for it; ``pool``: the patch pool's field (a small one makes
+    quick images; '' the default's 5,000 patches, as a user gets them)."""
     page.fill("#height", str(size[0]))
     page.fill("#width", str(size[1]))
     page.fill("#seed", str(seed))
     page.fill("#refine", refine)
+    page.fill("#n_patches", pool)
     page.set_checked("#tile", tile)
     page.click("#go")
     page.wait_for_function("(c) => document.getElementById('result-caption').textContent === c &&"
@@ -116,20 +119,23 @@ def test_the_last_results_are_kept_side_by_side_and_brought_back(page):
     assert Image.open(download.value.path()).size == (40, 32)
     # A seed picked from the strip is kept; another pick from the same strip takes its place.
     page.fill("#seed", "11")
+    page.fill("#n_patches", "300")  # the strip's and the rest's images quick (the first three at the default pool)
     page.click("#strip-go")
     page.wait_for_function("document.getElementById('strip-go').textContent === '8 seeds' &&"
                            " document.querySelectorAll('#strip img').length === 8", timeout=120_000)
     page.click("#strip img[data-seed='12']")
     page.click("#strip img[data-seed='15']")
     captions, shown = recent(page)
-    assert captions[:2] == ["result 32x40, seed 15, tileable (bricks)", captions[1]] and len(captions) == 4, captions
+    assert captions[:2] == ["result 32x40, seed 15, tileable, patch pool 300 (bricks)", captions[1]] and len(
+        captions) == 4, captions
     assert captions[1].startswith("result 32x40, seed 3") and shown == [0]
     # Bounded: the last 12.
     for seed in range(20, 31):
-        generate(page, seed)
+        generate(page, seed, pool="300")
     captions, shown = recent(page)
-    assert len(captions) == 12 and captions[0] == "result 32x40, seed 30 (bricks)" and shown == [0], captions
-    assert captions[-1] == "result 32x40, seed 15, tileable (bricks)"
+    assert len(captions) == 12 and captions[0] == "result 32x40, seed 30, patch pool 300 (bricks)" and shown == [0], (
+        captions)
+    assert captions[-1] == "result 32x40, seed 15, tileable, patch pool 300 (bricks)"
     assert not page.errors, page.errors
 
 
