@@ -1399,6 +1399,41 @@ def test_ctrl_c_stops_cleanly_and_a_rerun_finishes(tmp_path, workers):
     assert f"4 of 4 exemplars done ({done} by an earlier run)" in err.decode()
 
 
+def test_ctrl_c_writes_the_interrupted_lines_before_the_local_cluster_closes(tmp_path):
+    # 0.62 closed its local cluster after Ctrl-C (a busy worker's nanny waits for it, then kills it) and only then
+    # wrote the lines "interrupted" of the exemplars under way: a second kill meanwhile lost them. 0.63 writes them
+    # first. A real run, a real Ctrl-C to the process group; the ledger is read as the cluster's close begins.
+    pytest.importorskip("distributed")
+    src = make_folder(tmp_path / "src", bad=False)
+    (src / "list.csv").write_text("path,count\na.png,1\nsub/a.png,1000\n")  # sub/a: 1,000 images, long under way
+    code = ("import sys, distributed\n"
+            "from pathlib import Path\n"
+            "close = distributed.LocalCluster.close\n"
+            "def spied(self, *args, **kwargs):\n"
+            "    ledger = Path('out', 'batch.jsonl')\n"
+            "    Path('at-close.jsonl').write_text(ledger.read_text() if ledger.exists() else '')\n"
+            "    return close(self, *args, **kwargs)\n"
+            "distributed.LocalCluster.close = spied\n"
+            "from tghop.__main__ import run\n"
+            "sys.argv[0] = 'tghop'\n"
+            "run()\n")
+    args = ["batch", "src/list.csv", "-o", "out", "--size", "48", "--seed", "1", "--workers", "2", *CLI_FAST]
+    p = subprocess.Popen([sys.executable, "-c", code, *args], cwd=tmp_path, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, start_new_session=True)
+    running = tmp_path / "out" / "sub__a" / batch.RUNNING
+    deadline = time.time() + 300
+    while time.time() < deadline and p.poll() is None and not running.exists():
+        time.sleep(0.05)
+    time.sleep(0.5)  # handed out: the worker runs it
+    os.killpg(p.pid, signal.SIGINT)
+    _, err = p.communicate(timeout=300)
+    assert p.returncode == 130, err.decode()
+    at_close = [json.loads(line) for line in (tmp_path / "at-close.jsonl").read_text().splitlines()]
+    assert [line["status"] for line in at_close if line["name"] == "sub__a"] == ["interrupted"], at_close
+    assert ledger(tmp_path / "out") == at_close  # nothing written after the close
+    assert not running.exists()
+
+
 def test_ctrl_c_while_the_cluster_starts_prints_no_traceback(tmp_path):
     # Ctrl-C to the whole process group, again and again from the start: ignored while the
     # workers start (they inherit that), then a clean stop; never a worker's traceback.

@@ -386,6 +386,18 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         mark_running(job, True)  # before the task can move any file into place
         started[job["name"]] = job
 
+    def stop_lines():
+        """A line ``interrupted`` for each exemplar handed out and not finished, its RUNNING file removed (the task
+        then moves nothing in): called by the Dask driver before it closes the cluster (0.63; 0.62 wrote them after
+        the close, which a local cluster's busy worker can make long), and at the end. A second Ctrl-C must not
+        leave a started exemplar without its line."""
+        with ctrl_c_ignored(), contextlib.suppress(OSError):
+            for job in list(started.values()):
+                append_ledger(ledger_file, {"name": job["name"], "source": job["source"], "sha256": job["sha256"],
+                                             "settings": job["settings"], **_interrupted_record(job)})
+                started.pop(job["name"], None)
+                mark_running(job, False)  # the line says it now
+
     def finish(done):
         """Record ``done``, the (job, record) pairs of the exemplars that came back together: their
         lines written, then synced once (0.59; 0.58 synced each line), and only then their RUNNING files
@@ -447,19 +459,14 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
             counts["running"] = 0
         elif jobs:
             run_distributed(jobs, finish, counts, task, workers=workers, client=client, own_client=own_client,
-                             retries=retries, begin=begin, worker_setup=worker_setup)
+                             retries=retries, begin=begin, worker_setup=worker_setup, on_stop=stop_lines)
     except BaseException:
         stopped = True
         raise
     finally:
         if ledger_file is not None:
-            # A second Ctrl-C must not leave a started exemplar without its line; a full disk must not
-            # leave the temporaries and the contact sheet below undone.
+            stop_lines()  # a full disk must not leave the temporaries and the contact sheet below undone
             with ctrl_c_ignored(), contextlib.suppress(OSError):
-                for job in list(started.values()):
-                    append_ledger(ledger_file, {"name": job["name"], "source": job["source"], "sha256": job["sha256"],
-                                                 "settings": job["settings"], **_interrupted_record(job)})
-                    mark_running(job, False)  # the line says it now
                 # superseded lines dropped where they are many (0.59), while the lock is held: atomic
                 known = set(previous) | {name for name, r in results.items() if not r["skipped"]}
                 compact_ledger(outdir, known=len(known))

@@ -528,13 +528,16 @@ def _next_group(finished, lost, every=2.0):
     return group
 
 
-def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries, begin, worker_setup=None):
+def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries, begin, worker_setup=None,
+                    on_stop=None):
     """Run ``jobs`` on ``client``'s cluster (None: a local cluster of ``workers``, started
     here); ``own_client``, and the cluster started here, are closed at the end. Each job
     goes to ``begin`` before it is handed out; ``finish`` takes a list of the (job, record) pairs that came
     back together (0.59; 0.58 gave it one job and its record). ``worker_setup``: run
     in each worker of the cluster started here before its first task (and in one that replaces a
-    dead one), none of another cluster's."""
+    dead one), none of another cluster's. ``on_stop``: called when the run stops early (Ctrl-C, an error),
+    before anything is cancelled or closed: the ledger's ``interrupted`` lines (0.63; 0.62 wrote them once the
+    cluster had closed)."""
     from . import __version__
 
     distributed = import_distributed()
@@ -629,6 +632,8 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
             finish(done)
             own_files[0] = False
     except BaseException as exc:
+        if on_stop is not None:  # the exemplars under way recorded first: closing a busy cluster takes a while
+            on_stop()
         lost = None
         if client is not None and isinstance(exc, Exception) and not isinstance(exc, TGHopError):
             lost = _lost_scheduler(client, exc, dask_call=not own_files[0])
