@@ -92,6 +92,32 @@ def test_a_file_changed_just_before_the_run_is_read_every_time(tmp_path, monkeyp
     assert not (out / batch_plan.HASHES).exists()
 
 
+def test_a_folder_where_the_hashes_go_is_said_with_the_fix(tmp_path, monkeypatch, counted_reads):
+    # A folder named .batch-hashes.json: the cache cannot be written, so every rerun reads every input again;
+    # 0.62 said nothing. 0.63 warns in one line with the fix; the run goes on (the cache is no part of its result).
+    monkeypatch.setattr(batch_plan, "STAT_MARGIN", 0.0)
+    src, out = tmp_path / "src", tmp_path / "out"
+    src.mkdir()
+    (src / "x.png").write_bytes(b"exemplar")
+    (out / batch_plan.HASHES).mkdir(parents=True)
+    for _ in range(2):
+        with pytest.warns(UserWarning, match=r"^.*out/\.batch-hashes\.json is a folder, where the inputs' hashes "
+                                             r"go: this run and every rerun read every input whole again; remove "
+                                             r"that folder$"):
+            (result,) = batch.run(src, out, workers=1, task=quick_task, seed=1)
+        assert result["status"] == "ok"
+    assert counted_reads == ["x.png", "x.png"]
+    _, _, err, _ = invoke("batch", "src", "-o", "out", "--workers", "1", "-q", cwd=tmp_path)  # x.png: no image
+    assert [line for line in err.splitlines() if line.startswith("Warning: ")] == [
+        f"Warning: {out / batch_plan.HASHES} is a folder, where the inputs' hashes go: this run and every rerun read "
+        "every input whole again; remove that folder"], err
+    (out / batch_plan.HASHES).rmdir()  # the fix: the next run writes the file, and the one after reads nothing
+    batch.run(src, out, workers=1, task=quick_task, seed=1)
+    counted_reads.clear()
+    batch.run(src, out, workers=1, task=quick_task, seed=1)
+    assert counted_reads == []
+
+
 def test_hashes_of_another_source_into_the_same_outdir_are_kept(tmp_path, monkeypatch, counted_reads):
     # Two SOURCEs into one OUTDIR (docs/batch.md): each run keeps the other's hashes, so that neither
     # reads the other's files again on its next run; a file no ledger line names is forgotten.

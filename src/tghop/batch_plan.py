@@ -482,13 +482,18 @@ def keep_ledger_names(items, previous) -> None:
 
 
 def check_own_files(outdir: Path, contact_sheet: bool) -> None:
-    """Refuse a folder where OUTDIR's ledger or contact sheet goes (found before any work)."""
+    """Refuse a folder where OUTDIR's ledger or contact sheet goes (found before any work); warn of one where the
+    inputs' hashes go (:data:`HASHES`, a cache: the run is right without it, but reads every input again; 0.63,
+    0.62 said nothing)."""
     for name, what in ((LEDGER, "the ledger"), (CONTACT_SHEET, "the contact sheet")):
         if name == CONTACT_SHEET and not contact_sheet:
             continue
         if (outdir / name).is_dir():
             raise TGHopError(f"{outdir / name} is a folder, where {what} of the batch goes; remove that folder "
                              "or choose another OUTDIR")
+    if (outdir / HASHES).is_dir():
+        warnings.warn(f"{outdir / HASHES} is a folder, where the inputs' hashes go: this run and every rerun read "
+                      "every input whole again; remove that folder", stacklevel=3)
 
 
 def open_ledger(outdir: Path):
