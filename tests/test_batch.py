@@ -1434,6 +1434,41 @@ def test_ctrl_c_writes_the_interrupted_lines_before_the_local_cluster_closes(tmp
     assert not running.exists()
 
 
+def test_a_task_past_the_timeout_in_process_is_its_exemplars_failure(tmp_path):
+    # 0.62 had no time limit per task: one exemplar that never ends stopped the batch there. 0.63's --task-timeout
+    # (in this process: a timer's signal) records it as the exemplar's failure, and the run goes on. A real input made
+    # slow: a row of 1,000 images of 256x256, first in the manifest.
+    src = make_folder(tmp_path / "src", bad=False)
+    (src / "list.csv").write_text("path,count,size\na.png,1000,256\nsub/a.png,1,48\n")
+    args = ["batch", "src/list.csv", "-o", "out", "--size", "48", "--seed", "1", "--workers", "1", *CLI_FAST]
+    code, _, err, _ = invoke(*args, "--task-timeout", "30", cwd=tmp_path)
+    assert code == 1 and "failed: a: stopped after the task timeout (30 s, --task-timeout / task_timeout)" in err, err
+    slow, fast = ledger(tmp_path / "out")
+    assert (slow["name"], slow["cause"], slow["timed_out"], slow["task_timeout"]) == ("a", "input", True, 30)
+    assert fast["name"] == "sub__a" and fast["status"] == "ok"
+    assert not (tmp_path / "out" / "a").exists() and not leftovers(tmp_path / "out")
+    code, _, err, _ = invoke(*args, "--task-timeout", "30", cwd=tmp_path)  # skipped until it changes
+    assert code == 1 and "1 skipped as failed before" in err and len(ledger(tmp_path / "out")) == 2, err
+    made = []  # a longer timeout, or none, tries it again (each in a copy of OUTDIR); the same one does not
+    for timeout in (30, 60, None):
+        shutil.copytree(tmp_path / "out", tmp_path / f"out-{timeout}")
+        batch.run(src / "list.csv", tmp_path / f"out-{timeout}", size=48, seed=1, fit=FIT, generate=GEN, workers=1,
+                  task_timeout=timeout, task=lambda job: made.append((job["name"], timeout)) or {"status": "failed"})
+    assert made == [("a", 60), ("a", None)]
+    for bad in ("0", "-1", "nan", "inf", "soon"):
+        code, _, err, _ = invoke(*args, "--task-timeout", bad, cwd=tmp_path)
+        assert code == 2 and "--task-timeout" in err and "Traceback" not in err, err
+    with pytest.raises(TGHopError, match=r"^task_timeout must be a number of seconds above 0 \(or None: no limit\), "
+                                         r"got True$"):
+        batch.run(src, tmp_path / "out", workers=1, task_timeout=True)
+    stopped = []
+    thread = threading.Thread(target=lambda: stopped.append(pytest.raises(TGHopError, batch.run, src, tmp_path / "o2",
+                                                                          workers=1, task_timeout=5)))
+    thread.start()
+    thread.join()
+    assert "needs the main thread" in str(stopped[0].value) and not (tmp_path / "o2").exists()
+
+
 def test_ctrl_c_while_the_cluster_starts_prints_no_traceback(tmp_path):
     # Ctrl-C to the whole process group, again and again from the start: ignored while the
     # workers start (they inherit that), then a clean stop; never a worker's traceback.

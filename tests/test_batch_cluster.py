@@ -9,6 +9,7 @@ import subprocess
 import sys
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import pytest
@@ -632,3 +633,32 @@ def test_a_killed_drivers_task_that_runs_on_leaves_the_reruns_files_alone(tmp_pa
     assert stale["status"] == "failed" and stale.get("superseded"), stale
     [again] = batch.run(src, out, size=(48, 48), seed=1, fit=FIT, generate=GEN, workers=1)
     assert again["skipped"] and again["seed_used"] == 1
+
+
+def test_a_task_past_the_timeout_is_its_exemplars_failure_and_its_worker_restarted(tmp_path, local):
+    # 0.62 had no time limit per task: one exemplar that never ends held its worker for ever, and with one worker the
+    # batch stopped there. 0.63: task_timeout (--task-timeout) records it as the exemplar's failure and restarts the
+    # worker through its nanny, so the run goes on. A real input made slow (a row of 1,000 images of 256x256, handed
+    # out first: the longest), on a real LocalCluster of one worker process: the others can only run once it is freed.
+    cluster, client = local
+    (before,) = client.run(os.getpid).values()
+    src, out = tmp_path / "src", tmp_path / "out"
+    src.mkdir()
+    for i in range(3):
+        save_image(data.bricks(64, rng=i), src / f"e{i}.png")
+    (src / "list.csv").write_text("path,count,size\ne0.png,1000,256\ne1.png,1,32\ne2.png,1,32\n")
+    run = dict(size=32, seed=1, fit=FIT, generate=GEN, client=client, task_timeout=30)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        results = batch.run(src / "list.csv", out, **run)
+    assert not [str(w.message) for w in said if "left the cluster" in str(w.message)]  # restarted on purpose
+    slow, *others = results
+    assert (slow["status"], slow["cause"], slow.get("timed_out"), slow.get("task_timeout")) == ("failed", "input", True,
+                                                                                                30), slow["error"]
+    assert slow["error"].startswith("stopped after the task timeout (30 s, --task-timeout / task_timeout)")
+    assert [r["status"] for r in others] == ["ok", "ok"]
+    assert str(before) not in {r["worker"].split(":")[1] for r in others}  # on the worker restarted
+    assert list(client.nthreads().values()) == [1]
+    assert not (out / "e0").exists() and not list(out.glob("*/.batch-running")) and not list(out.rglob("*.tmp"))
+    again = batch.run(src / "list.csv", out, **run)  # skipped by a rerun, as a failure of its input
+    assert [r["skipped"] for r in again] == [True, True, True]

@@ -31,7 +31,10 @@ from __future__ import annotations
 import contextlib
 import json
 import numbers
+import math
 import os
+import signal
+import threading
 import time
 import uuid
 import warnings
@@ -47,7 +50,7 @@ from .batch_plan import (IMAGE_SUFFIXES, LEDGER, NAME_MAX, RUNNING, append_ledge
                          keep_ledger_names, mark_running, move_renamed, open_ledger, prune_orphans,
                          read_hashes, read_ledger, read_ledger_files, remove_stale, renamable, renamed_from,
                          sync_ledger, worker_deaths, write_hashes)
-from .batch_task import claimed, disk_full, process_exemplar, remove_temporaries
+from .batch_task import claimed, disk_full, process_exemplar, remove_temporaries, within
 from .contact_sheet import CONTACT_SHEET, write_contact_sheet as _write_sheet
 from .manifest import parse_bool, parse_int, parse_size
 
@@ -117,7 +120,7 @@ def _jsonable(value, name):
         raise TGHopError(f"{name}: every number must be finite (no NaN or infinity)") from None
 
 
-def _check_call(outdir, fit, generate, workers, callables) -> None:
+def _check_call(outdir, fit, generate, workers, callables, task_timeout=None) -> None:
     """Refuse :func:`run`'s bad arguments (not its settings' values) before any work or file."""
     from .settings import fit_settings
 
@@ -136,12 +139,15 @@ def _check_call(outdir, fit, generate, workers, callables) -> None:
     for name, fn in callables.items():
         if fn is not None and not callable(fn):
             raise TGHopError(f"{name} must be a callable (or None), got {fn!r}")
+    if task_timeout is not None and (isinstance(task_timeout, bool) or not isinstance(task_timeout, numbers.Real)
+                                     or not math.isfinite(task_timeout) or task_timeout <= 0):
+        raise TGHopError(f"task_timeout must be a number of seconds above 0 (or None: no limit), got {task_timeout!r}")
 
 
 def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=None, generate=None,
         workers=None, client=None, scheduler=None, retries=3, progress=None, on_result=None, contact_sheet=True,
         task=None, prune=False, on_orphans=None, retry_failed=False, max_depth=None, on_plan=None,
-        worker_setup=None, force=False):
+        worker_setup=None, force=False, task_timeout=None):
     """Fit every exemplar of ``source`` and write a model and ``count`` images of each.
 
     Parameters
@@ -203,6 +209,13 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         exemplars would go (over 10), unless ``force``.
     force : bool
         With ``prune``: also the exemplars whose source folder is missing, however many (0.62).
+    task_timeout : float, optional
+        Seconds after which an exemplar's task is stopped and recorded as its failure (0.63; None, the default: no
+        limit): ``cause`` "input", skipped by reruns until its input or settings change, a longer ``task_timeout``
+        is given, or ``retry_failed``; the run goes on. On Dask, counted from its hand-out; the task is cancelled
+        and its worker restarted (through its nanny: one without runs on to the task's end, its files dropped). In
+        this process (``workers=1``), by a timer's signal in the main thread (POSIX; elsewhere refused): a single
+        call into C code that never returns is not stopped there.
     on_orphans : callable(orphans), optional
         Called once, before any work, where there are such folders: a list of dicts, ``name``
         (the folder's), ``pruned`` (its files removed), ``kept`` (the entries left in it: not
@@ -268,7 +281,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
     """
     _check_call(outdir, fit, generate, workers, {"progress": progress, "on_result": on_result, "task": task,
                                                   "on_orphans": on_orphans, "on_plan": on_plan,
-                                                  "worker_setup": worker_setup})
+                                                  "worker_setup": worker_setup}, task_timeout)
     most = WORKERS_PER_CORE * affinity_cores()
     if client is None and scheduler is None and workers is not None and workers > most:
         raise TGHopError(f"the worker processes (workers, --workers): {workers} on this machine's "
@@ -301,6 +314,10 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
             warnings.warn(f"Dask is not installed: the exemplars run one after another in this process; for one "
                           f"worker per core install it with: {INSTALL_HINT}", stacklevel=2)
             in_process = True
+    if in_process and task_timeout is not None and (threading.current_thread() is not threading.main_thread()
+                                                    or not hasattr(signal, "setitimer")):
+        raise TGHopError("task_timeout in this process (workers=1) needs the main thread on a POSIX system (a timer's "
+                         "signal stops the task); call run from the main thread, or run on Dask (workers=2 or more)")
     task = process_exemplar if task is None else task
     standing = {}  # the last line done of each exemplar, where only failed tries follow it (0.62)
     lost = {}  # the runs in a row each exemplar's worker died on every try (0.62)
@@ -333,7 +350,7 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
                "settings": settings, "size": settings["size"],
                "count": settings["count"], "seed": settings["seed"], "fit": settings["fit"],
                "generate": {**generate, "tile": settings["tile"]}, "threads": None if in_process else 1,
-               "claim": claim}
+               "claim": claim, "task_timeout": task_timeout}
         if is_done(previous.get(it["name"]), job, outdir):
             results[it["name"]] = {**previous[it["name"]], "skipped": True}
         elif standing.get(it["name"]) not in (None, previous.get(it["name"])) \
@@ -455,11 +472,12 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
             for job in jobs:
                 counts["running"] = 1
                 begin(job)
-                finish([(job, task(job))])
+                finish([(job, within(task, job, task_timeout))])
             counts["running"] = 0
         elif jobs:
             run_distributed(jobs, finish, counts, task, workers=workers, client=client, own_client=own_client,
-                             retries=retries, begin=begin, worker_setup=worker_setup, on_stop=stop_lines)
+                             retries=retries, begin=begin, worker_setup=worker_setup, on_stop=stop_lines,
+                             task_timeout=task_timeout)
     except BaseException:
         stopped = True
         raise

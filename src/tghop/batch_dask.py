@@ -19,7 +19,7 @@ import time
 import warnings
 
 from ._errors import MissingExtraError, TGHopError
-from .batch_task import one_line, run_checked
+from .batch_task import one_line, run_checked, timed_out_record
 
 __all__ = ["INSTALL_HINT", "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "QUIET_CLUSTER", "import_distributed",
            "local_cluster",
@@ -503,11 +503,12 @@ def _workers_lost(client, own_cluster, had_workers):
     return lost
 
 
-def _next_group(finished, lost, every=2.0):
+def _next_group(finished, lost, every=2.0, overdue=None):
     """The futures that finished since the last call (``finished``: a queue each future is put into once done, by
     ``Future.add_done_callback``), waiting for the first: looking every ``every`` seconds without one whether the
-    cluster ``lost()`` its workers for good, twice in a row, then a one-line :class:`~tghop.TGHopError`. (0.60 waited
-    on ``as_completed``'s undocumented ``thread_condition``; 0.61 on a queue of its own, Dask's documented callback.)"""
+    cluster ``lost()`` its workers for good, twice in a row, then a one-line :class:`~tghop.TGHopError`, and whether a
+    task is ``overdue()`` (past the task timeout: none returned then, 0.63). (0.60 waited on ``as_completed``'s
+    undocumented ``thread_condition``; 0.61 on a queue of its own, Dask's documented callback.)"""
     looks = 0
     while True:
         try:
@@ -515,6 +516,8 @@ def _next_group(finished, lost, every=2.0):
             break
         except queue.Empty:
             pass
+        if overdue is not None and overdue():
+            return []
         looks = looks + 1 if lost() else 0  # only after a wait without a result: no round trip per group
         if looks >= 2:
             raise TGHopError("the local Dask cluster lost every worker for good (each killed, by the system when out "
@@ -528,8 +531,34 @@ def _next_group(finished, lost, every=2.0):
     return group
 
 
+#: How long the driver waits for a worker restarted after a task timeout (:func:`run_distributed`; 0.63) to be back.
+RESTART_TIMEOUT = 120
+
+
+def _stop_overdue(client, late, by_key, handed, seconds) -> tuple:
+    """``(done, restarted)``: the (job, record) of each future of ``late`` (running past the task timeout,
+    ``seconds``; ``handed``: key -> the (monotonic, wall) time it was handed out), a record of
+    :func:`tghop.batch_task.timed_out_record`, and the addresses of their workers, each restarted (through its nanny;
+    Dask cannot stop a running thread) once the tasks are cancelled, so that it is free again. A worker without a
+    nanny (``dask worker --no-nanny``, a cluster of threads) is not restarted: its thread runs on to the task's end,
+    and its files are dropped (the exemplar's claim is gone once its line is written)."""
+    try:  # the workers running them: the scheduler's record
+        on = {key: address for address, running in client.processing().items() for key in running}
+    except Exception:  # noqa: BLE001 - a scheduler lost: said by the next call of the run
+        on = {}
+    done = [(by_key[fut.key], {**timed_out_record(by_key[fut.key], seconds, handed[fut.key][1], lost=fut.key in on),
+                               "worker": on.get(fut.key)}) for fut in late]
+    restarted = sorted({on[fut.key] for fut in late if fut.key in on})
+    with contextlib.suppress(Exception):
+        client.cancel(late, force=True)
+    if restarted:
+        with contextlib.suppress(Exception):  # no nanny: the worker runs on, busy until the task ends
+            client.restart_workers(restarted, timeout=RESTART_TIMEOUT, raise_for_error=False)
+    return done, restarted
+
+
 def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries, begin, worker_setup=None,
-                    on_stop=None):
+                    on_stop=None, task_timeout=None):
     """Run ``jobs`` on ``client``'s cluster (None: a local cluster of ``workers``, started
     here); ``own_client``, and the cluster started here, are closed at the end. Each job
     goes to ``begin`` before it is handed out; ``finish`` takes a list of the (job, record) pairs that came
@@ -537,7 +566,8 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
     in each worker of the cluster started here before its first task (and in one that replaces a
     dead one), none of another cluster's. ``on_stop``: called when the run stops early (Ctrl-C, an error),
     before anything is cancelled or closed: the ledger's ``interrupted`` lines (0.63; 0.62 wrote them once the
-    cluster had closed)."""
+    cluster had closed). ``task_timeout``: seconds from a task's hand-out after which it is the exemplar's failure
+    and its worker is restarted (:func:`_stop_overdue`; None: no limit; 0.63)."""
     from . import __version__
 
     distributed = import_distributed()
@@ -575,6 +605,13 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
         # future's own client's loop; as_completed would take the default client's, which may be another, one closed
         # by now: its futures were never reported, and the run waited for ever). `running`: handed out, not taken.
         by_key, running, finished = {}, set(), queue.SimpleQueue()
+        handed, dropped = {}, set()  # key -> (monotonic, wall) time of its hand-out; keys stopped by the timeout
+
+        def overdue():
+            if task_timeout is None:
+                return []
+            now = time.monotonic()
+            return [fut for fut in running if now - handed[fut.key][0] > task_timeout and not fut.done()]
 
         seen = {}  # the workers at the last hand-out: address -> name
         known = set(client.nthreads()) if own_cluster is None else set()  # every worker checked (check_cluster)
@@ -604,6 +641,7 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
                 # run_checked: a worker that joins later, past the check above, may have another tghop or none
                 new = client.map(run_checked, [task] * len(now), now, [__version__] * len(now), key=keys, pure=False)
                 by_key.update({fut.key: job for fut, job in zip(new, now)})
+                handed.update(dict.fromkeys([fut.key for fut in new], (time.monotonic(), time.time())))
                 futures.extend(new)
                 running.update(new)
                 for fut in new:
@@ -617,12 +655,20 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
             # gather of their results, one look at the workers (hand_out) and one sync of their ledger lines
             # (finish) for the group; each a round trip or a disk's flush, which per exemplar bounded a large
             # cluster to tens of exemplars a second (docs/batch.md, "The driver's cost per exemplar").
-            group = _next_group(finished, lost)
+            group = [fut for fut in _next_group(finished, lost, overdue=overdue) if fut.key not in dropped]
             running.difference_update(group)
             done = _results(client, group, by_key, retries if own_cluster is not None else None,
-                            None if own_cluster is not None else check_joined)
+                            None if own_cluster is not None else check_joined) if group else []
             for fut in group:
                 fut.release()
+            late = overdue()
+            if late:  # past the task timeout (0.63): the exemplar's failure, its worker restarted
+                dropped.update(fut.key for fut in late)
+                running.difference_update(late)
+                stopped, restarted = _stop_overdue(client, late, by_key, handed, task_timeout)
+                done += stopped
+                for address in restarted:  # not "a worker left the cluster mid-run": restarted on purpose
+                    seen.pop(address, None)
             try:
                 hand_out()  # before the ledger lines: the freed workers start at once
             except TGHopError:  # a worker that joined without this tghop (check_workers_tghop): the run stops

@@ -632,8 +632,12 @@ def is_known_failure(prev: dict | None, job: dict, version: str) -> bool:
     the exemplar's file (0.57: a material's row fails by its files' names, a normal map as its path,
     and a misnamed file renamed holds the same bytes), and no :data:`RUNNING` file left. A failure of
     the run's (memory, a lost worker, an interruption, an unexpected error), or of a line written
-    before causes were recorded, is not one: it is tried again."""
+    before causes were recorded, is not one: it is tried again. Nor is a task stopped by the task timeout (0.63)
+    where ``job``'s is longer, or none."""
     if not prev or prev.get("status") != "failed" or prev.get("cause") != "input" or job["sha256"] is None:
+        return False
+    if prev.get("timed_out") and (job.get("task_timeout") is None
+                                  or job["task_timeout"] > (prev.get("task_timeout") or 0)):
         return False
     if claimed(job["folder"]):
         return False

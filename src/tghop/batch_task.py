@@ -20,8 +20,8 @@ from ._errors import HINT_DOWNSCALE_YOURSELF, MissingExtraError, TGHopError, col
 from ._formats import is_model_file, model_file_kind
 
 __all__ = ["process_exemplar", "run_checked", "remove_temporaries", "one_line", "outside_the_files", "disk_full",
-           "task_threads", "output_files", "write_claim", "holding_claim", "STAGE", "THUMBNAIL", "THUMBNAIL_FILE",
-           "RUNNING", "SUPERSEDED", "claimed"]
+           "task_threads", "output_files", "write_claim", "holding_claim", "within", "timed_out_record", "TaskTimeout",
+           "STAGE", "THUMBNAIL", "THUMBNAIL_FILE", "RUNNING", "SUPERSEDED", "claimed"]
 
 #: Prefix and suffix of the hidden folder in which :func:`process_exemplar` makes an exemplar's files.
 STAGE = (".partial.", ".tmp")
@@ -39,6 +39,58 @@ SUPERSEDED = ("superseded: this exemplar's claim (its .batch-running file) was n
 THUMBNAIL, THUMBNAIL_FILE = 128, "exemplar.png"
 #: The process-wide thread limits of the tasks running in this process (:func:`task_threads`).
 _HOLD = {"lock": threading.Lock(), "count": 0, "limit": None, "stack": None}
+#: Whether :func:`within`'s alarm may stop the task now: :func:`process_exemplar` clears it before it moves its
+#: files into place, so that they are all moved or none (0.63).
+_ALARM = {"armed": False}
+
+
+class TaskTimeout(BaseException):
+    """Raised in the main thread by :func:`within`'s alarm: a task past its time. A BaseException, as Ctrl-C's
+    KeyboardInterrupt: a task's own ``except Exception`` (a bad exemplar's record) does not take it."""
+
+
+def timed_out_record(job: dict, seconds: float, started: float, lost: bool = False) -> dict:
+    """The ledger record of ``job``'s task stopped after ``seconds`` (``task_timeout``, 0.63): the exemplar's own
+    failure (``cause`` "input": reruns skip it, :func:`tghop.batch_plan.is_known_failure`, until its input or settings
+    change, a longer timeout is given or ``--retry-failed``). ``lost``: its worker was restarted at an unknown point
+    of the task (``task_lost``: it may have moved files in)."""
+    record = {"status": "failed", "cause": "input", "outputs": [], "model": None, "thumbnail": None,
+              "error": f"stopped after the task timeout ({seconds:g} s, --task-timeout / task_timeout): a huge or "
+                       "pathological exemplar, or too much asked of it; give a smaller size, count or exemplar, or a "
+                       "longer timeout (a rerun with a longer one tries it again, as --retry-failed does)",
+              "seed_used": job.get("seed"), "started": started, "seconds": time.time() - started,
+              "timed_out": True, "task_timeout": seconds}
+    return {**record, "task_lost": True} if lost else record
+
+
+def within(task, job: dict, seconds):
+    """``task(job)`` in this process, stopped once it has run ``seconds`` (None: no limit; 0.63): a timer's signal
+    (SIGALRM) raises :class:`TaskTimeout` in the main thread, which is ``job``'s record then
+    (:func:`timed_out_record`). Only where this is the main thread and the system has the signal (POSIX): callers
+    check that first. A single call into a library that never returns (C code) is not stopped; a task on Dask is
+    (:func:`tghop.batch_dask.run_distributed` restarts its worker)."""
+    if seconds is None:
+        return task(job)
+    import signal
+
+    started = time.time()
+
+    def expired(signum, frame):
+        if _ALARM["armed"]:
+            _ALARM["armed"] = False
+            raise TaskTimeout
+
+    previous = signal.signal(signal.SIGALRM, expired)
+    _ALARM["armed"] = True
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        return task(job)
+    except TaskTimeout:
+        return timed_out_record(job, seconds, started)
+    finally:
+        _ALARM["armed"] = False
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
 
 
 @contextlib.contextmanager
@@ -373,6 +425,7 @@ def process_exemplar(job: dict) -> dict:
             if (folder / file).is_dir():  # (0.61): none moved
                 raise TGHopError(f"{folder / file} is a folder, where {name}'s file of that name goes; move or remove "
                                  "that folder, or choose another OUTDIR")
+        _ALARM["armed"] = False  # the task timeout (in process) stops it no more: its files all moved, or none
         with holding_claim(folder, job.get("claim")) as current:  # no other run claims it meanwhile
             if not current:  # a stopped run's task that ran on: its files would replace a later run's (0.62)
                 record["superseded"] = True

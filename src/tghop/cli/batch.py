@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import re
 import sys
@@ -122,11 +123,15 @@ def stopped_line(plan, last, failed) -> str:
                    "subfolders' too, ... [default: every level]")
 @click.option("--retry-failed", is_flag=True,
               help="Try again the exemplars that failed before for a cause in their input (not an image, flat, too "
-                   "small; a worker dead on every try in 3 runs in a row) although their files and settings are "
-                   "unchanged; without it a rerun skips them.")
+                   "small; a worker dead on every try in 3 runs in a row; stopped by --task-timeout) although their "
+                   "files and settings are unchanged; without it a rerun skips them.")
+@click.option("--task-timeout", type=click.FloatRange(min=0, min_open=True), default=None, metavar="SECONDS",
+              help="Stop an exemplar's task after SECONDS and record it as that exemplar's failure (a rerun skips it "
+                   "until it changes, a longer timeout or --retry-failed); on Dask its worker is restarted, and the "
+                   "run goes on [default: no limit].")
 @QUIET_OPTION
-def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune, force, max_depth, retry_failed, quiet,
-          **options):
+def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune, force, max_depth, retry_failed,
+          task_timeout, quiet, **options):
     """Fit every exemplar of SOURCE and write its model and COUNT images to OUTDIR.
 
     SOURCE is a folder (every image in it, recursively) or a manifest: a CSV file with a
@@ -161,6 +166,9 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
             check_outdir(source, outdir)
         except TGHopError as exc:
             raise click.UsageError(str(exc)) from None
+        if task_timeout is not None and not math.isfinite(task_timeout):
+            raise click.UsageError(f"--task-timeout {task_timeout}: give a number of seconds (e.g. 3600), or leave it "
+                                   "out for no limit")
         generate = generation_params(options)
         fit = fit_params(options)
         quiet_tifffile()  # the exemplars read in this process (one worker); a local cluster's workers: worker_setup
@@ -177,7 +185,7 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
                                   fit=fit, generate=generate, workers=workers, scheduler=scheduler, retries=retries,
                                   progress=progress, on_result=progress.result, prune=prune, force=force,
                                   on_orphans=orphans.extend, retry_failed=retry_failed, max_depth=max_depth,
-                                  on_plan=progress.plan, worker_setup=quiet_tifffile)
+                                  on_plan=progress.plan, worker_setup=quiet_tifffile, task_timeout=task_timeout)
         except library.SchedulerLostError as exc:  # its own status: "run it again", not "look at the failures"
             progress.close()
             fail(str(exc), SCHEDULER_LOST)
