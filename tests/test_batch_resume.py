@@ -220,6 +220,33 @@ def test_a_rename_of_case_only_is_a_rename_and_its_old_folder_is_said(tmp_path):
         assert sorted(p.name for p in out.iterdir() if p.is_dir()) == ["Rock"]
 
 
+def test_a_rename_of_case_only_where_the_two_names_are_one_folder(tmp_path):
+    # The path of a case-insensitive file system (macOS's, Windows'): OUTDIR/Rock and OUTDIR/rock are one folder
+    # (os.path.samefile). No such mount can be made here without root (ext4's casefold needs mkfs and mount, vfat
+    # a mount), so the folder is made to behave so: OUTDIR/rock a link to OUTDIR/Rock. The files are renamed inside
+    # it, the folder's own rename fails there (a folder cannot replace a link) and it is kept as it was, and the old
+    # name is never a folder "no longer in SOURCE": its thumbnail, exemplar.png, is the new name's, which --prune
+    # would have deleted (0.61 compared the names without case and said nothing; a case-sensitive test alone could
+    # not see this).
+    src, out = make_folder(tmp_path / "src", 1), tmp_path / "out"
+    (src / "e0.png").rename(src / "Rock.png")
+    run(src, out)
+    made = {p.name: p.read_bytes() for p in (out / "Rock").iterdir()}
+    (out / "rock").symlink_to("Rock", target_is_directory=True)  # the other case of the name: the same folder
+    (src / "Rock.png").rename(src / "rock.png")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no folder said "no longer in SOURCE", in this run or the next
+        (again,) = run(src, out, task=lambda job: pytest.fail(f"{job['name']} made again"))
+        assert again["renamed"] and again["renamed_from"] == "Rock"
+        assert {p.name: p.read_bytes() for p in (out / "rock").iterdir()} == {
+            k.replace("Rock", "rock"): v for k, v in made.items()}
+        assert sorted(p.name for p in out.iterdir() if p.name not in ("batch.jsonl", "index.html", batch_plan.HASHES)
+                      ) == ["Rock", "rock"]  # no temporary name left: the folder kept as it was
+        (third,) = run(src, out, prune=True, task=lambda job: pytest.fail(f"{job['name']} made again"))
+    assert third["skipped"] and all((out / f).is_file() for f in [*third["outputs"], third["model"], third["thumbnail"]])
+    assert third["thumbnail"] == "rock/exemplar.png" and (out / "Rock" / "exemplar.png").is_file()
+
+
 def test_a_failed_try_after_a_finished_one_does_not_make_it_again(tmp_path):
     # A share that dropped for a while (its exemplars "no such file"), a worker out of memory: a failed try moves no
     # file, so the folder still holds the finished try's files. 0.61 took the failed line as the exemplar's state and
