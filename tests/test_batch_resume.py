@@ -243,7 +243,8 @@ def test_a_rename_of_case_only_where_the_two_names_are_one_folder(tmp_path):
         assert sorted(p.name for p in out.iterdir() if p.name not in ("batch.jsonl", "index.html", batch_plan.HASHES)
                       ) == ["Rock", "rock"]  # no temporary name left: the folder kept as it was
         (third,) = run(src, out, prune=True, task=lambda job: pytest.fail(f"{job['name']} made again"))
-    assert third["skipped"] and all((out / f).is_file() for f in [*third["outputs"], third["model"], third["thumbnail"]])
+    assert third["skipped"] and all((out / f).is_file()
+                                    for f in [*third["outputs"], third["model"], third["thumbnail"]])
     assert third["thumbnail"] == "rock/exemplar.png" and (out / "Rock" / "exemplar.png").is_file()
 
 
