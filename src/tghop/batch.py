@@ -30,8 +30,8 @@ from __future__ import annotations
 
 import contextlib
 import json
-import numbers
 import math
+import numbers
 import os
 import signal
 import threading
