@@ -647,15 +647,15 @@ def test_a_task_past_the_timeout_is_its_exemplars_failure_and_its_worker_restart
     for i in range(3):
         save_image(data.bricks(64, rng=i), src / f"e{i}.png")
     (src / "list.csv").write_text("path,count,size\ne0.png,1000,256\ne1.png,1,32\ne2.png,1,32\n")
-    run = dict(size=32, seed=1, fit=FIT, generate=GEN, client=client, task_timeout=30)
+    run = dict(size=32, seed=1, fit=FIT, generate=GEN, client=client, task_timeout=10)
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
         results = batch.run(src / "list.csv", out, **run)
     assert not [str(w.message) for w in said if "left the cluster" in str(w.message)]  # restarted on purpose
     slow, *others = results
     assert (slow["status"], slow["cause"], slow.get("timed_out"), slow.get("task_timeout")) == ("failed", "input", True,
-                                                                                                30), slow["error"]
-    assert slow["error"].startswith("stopped after the task timeout (30 s, --task-timeout / task_timeout)")
+                                                                                                10), slow["error"]
+    assert slow["error"].startswith("stopped after the task timeout (10 s, --task-timeout / task_timeout)")
     assert [r["status"] for r in others] == ["ok", "ok"]
     assert str(before) not in {r["worker"].split(":")[1] for r in others}  # on the worker restarted
     assert list(client.nthreads().values()) == [1]
