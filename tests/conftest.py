@@ -1,9 +1,16 @@
 """Shared fixtures: small textures made in code and a small fitted model (no ../shared)."""
 
+import os
 import signal
 import sys
 
-import numpy as np
+# OpenBLAS's idle threads spin up to 2^28 cycles between calls, taking the CPU from the other worker's tests on
+# CI's 2 cores: set as `tghop` sets it for the command (tghop.__main__.run), before NumPy is loaded here and in
+# the xdist workers, which inherit it (docs/choices.md, "The test suite on CI's two cores", 0.63). Idle time only:
+# the same numbers.
+os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
+
+import numpy as np  # noqa: E402
 import pytest
 
 from tghop import data

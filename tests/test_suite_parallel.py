@@ -100,3 +100,17 @@ def test_the_files_named_to_start_first_or_run_together_exist():
     here = Path(__file__).parent
     assert [name for name in (*conftest.SLOW_FIRST, *conftest.TOGETHER) if not (here / name).is_file()] == []
     assert len(set(conftest.SLOW_FIRST)) == len(conftest.SLOW_FIRST)
+
+
+def test_openblas_idle_threads_sleep_soon_in_the_tests_as_in_the_command():
+    # 0.63: the workers ran the library with OpenBLAS's default spin between calls (the command sets it short):
+    # on CI's 2 cores each worker's spinning BLAS thread took the CPU from the other worker's tests.
+    import subprocess
+    import sys
+
+    assert os.environ.get("OPENBLAS_THREAD_TIMEOUT"), "set by tests/conftest.py before NumPy loads"
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_THREAD_TIMEOUT"}
+    code = "import os, conftest; print(os.environ['OPENBLAS_THREAD_TIMEOUT'])"
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env,
+                       cwd=Path(__file__).parent)
+    assert p.returncode == 0 and p.stdout.strip() == "4", p.stderr  # what the workers inherit, unless the user set it
