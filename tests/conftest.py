@@ -98,6 +98,18 @@ def pytest_collection_modifyitems(config, items):
         items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
 
 
+def straight_share(labels, run=16):
+    """The share of a label map's boundary (pixel edges between two labels) in horizontal or vertical
+    straight runs of at least ``run`` pixels."""
+    total = long = 0
+    for edges in (labels[:-1] != labels[1:], (labels[:, :-1] != labels[:, 1:]).T):
+        steps = np.diff(np.pad(edges, ((0, 0), (1, 1))).astype(np.int8), axis=1)
+        lengths = np.nonzero(steps == -1)[1] - np.nonzero(steps == 1)[1]
+        total += lengths.sum()
+        long += lengths[lengths >= run].sum()
+    return long / max(total, 1)
+
+
 def png(pixels) -> bytes:
     """``pixels`` (an (H, W, C) or (H, W) array, as :func:`tghop.imageio.write_png` takes) as a PNG file's bytes."""
     import io

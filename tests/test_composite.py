@@ -7,6 +7,8 @@ from tghop import TGHopError
 from tghop.composite import band_boxes, cut_regions, in_band, join_layers, layer_boxes
 from tghop.guided import region_weights
 
+from conftest import straight_share
+
 
 def _halves(h=24, w=64, split=32):
     labels = np.zeros((h, w), dtype=np.int64)
@@ -39,18 +41,6 @@ def test_the_join_runs_where_the_layers_look_alike():
     assert off[0].max() <= 3 and off[1].min() > off[0].max()
 
 
-def _straight_share(labels, run=16):
-    """The share of a label map's boundary (pixel edges between two labels) in horizontal or vertical
-    straight runs of at least ``run`` pixels."""
-    total = long = 0
-    for edges in (labels[:-1] != labels[1:], (labels[:, :-1] != labels[:, 1:]).T):
-        steps = np.diff(np.pad(edges, ((0, 0), (1, 1))).astype(np.int8), axis=1)
-        lengths = np.nonzero(steps == -1)[1] - np.nonzero(steps == 1)[1]
-        total += lengths.sum()
-        long += lengths[lengths >= run].sum()
-    return long / max(total, 1)
-
-
 def test_the_join_is_not_drawn_along_rows_and_columns():
     """On 4 neighbours (0.62) a cut's length was its Manhattan length: where two layers were unlike, the
     join took the chord across a curved outline as a straight row or column (a remix's gravel in grass:
@@ -65,7 +55,7 @@ def test_the_join_is_not_drawn_along_rows_and_columns():
     for seed in range(6):
         labels = random_labels((256, 256), 2, rng=seed, scale=48)
         shows = cut_regions(labels, region_weights(labels, 2, 32), layers, _whole(labels, layers))
-        shares.append(_straight_share(shows))
+        shares.append(straight_share(shows))
     assert np.mean(shares) < 0.25, shares
 
 

@@ -17,7 +17,7 @@ from tghop.imageio import to_uint8
 from tghop.modelfile import save_model
 from tghop.synthesis import TGHop
 
-from conftest import assert_user_error, cli
+from conftest import assert_user_error, cli, straight_share
 
 FAST = dict(n_clusters=8, n_codewords=40, max_patches=1200, stride=4, layout_factor=None)
 GEN = dict(n_patches=500, refine=2)
@@ -496,18 +496,6 @@ def test_morph_regions_have_organic_outlines_and_follow_the_ramp(models, monkeyp
     assert len(np.unique(np.nonzero(across)[1] % 16)) == 16 and len(np.unique(np.nonzero(down)[0] % 16)) >= 12
 
 
-def _straight_share(labels, run=16):
-    """The share of a label map's boundary (pixel edges between two labels) in horizontal or vertical
-    straight runs of at least ``run`` pixels."""
-    total = long = 0
-    for edges in (labels[:-1] != labels[1:], (labels[:, :-1] != labels[:, 1:]).T):
-        steps = np.diff(np.pad(edges, ((0, 0), (1, 1))).astype(np.int8), axis=1)
-        lengths = np.nonzero(steps == -1)[1] - np.nonzero(steps == 1)[1]
-        total += lengths.sum()
-        long += lengths[lengths >= run].sum()
-    return long / max(total, 1)
-
-
 def test_remix_regions_have_smooth_outlines_and_no_specks():
     """0.62 repeated each sample of a remix's field over its 16 px cell: every outline a staircase of
     cell-sized steps (all of the boundary in straight runs of 16 px or more; the join straightened them
@@ -521,7 +509,7 @@ def test_remix_regions_have_smooth_outlines_and_no_specks():
     for seed in range(4):
         for size, k in (((512, 512), 3), ((1024, 768), 2)):
             labels = guided.random_labels(size, k, rng=seed)
-            shares.append(_straight_share(labels))
+            shares.append(straight_share(labels))
             assert np.abs(np.bincount(labels.ravel(), minlength=k) / labels.size - 1 / k).max() < 0.02
             for value in range(k):
                 sizes = np.bincount(ndimage.label(labels == value)[0].ravel())[1:]
@@ -541,7 +529,7 @@ def test_a_tileable_remix_regions_wrap_around(size):
             inside = (a[:, :-1] != a[:, 1:]).mean()
             assert (a[:, -1] != a[:, 0]).mean() <= 3 * inside + 0.02, (seed, inside, (a[:, -1] != a[:, 0]).mean())
         # the tiled labels' regions are as smooth as the image's own
-        assert _straight_share(np.tile(labels, (2, 2))) < 0.4
+        assert straight_share(np.tile(labels, (2, 2))) < 0.4
 
 
 @pytest.mark.parametrize("size", [(1, 1), (1, 2), (2, 300), (64, 256), (300, 64)])
