@@ -640,6 +640,8 @@ def test_a_task_past_the_timeout_is_its_exemplars_failure_and_its_worker_restart
     # batch stopped there. 0.63: task_timeout (--task-timeout) records it as the exemplar's failure and restarts the
     # worker through its nanny, so the run goes on. A real input made slow (a row of 1,000 images of 256x256, handed
     # out first: the longest), on a real LocalCluster of one worker process: the others can only run once it is freed.
+    # The timeout is short (the test's own wait); the fast rows end well within it on the restarted worker under
+    # load (docs/choices.md, "The test suite on CI's two cores").
     cluster, client = local
     (before,) = client.run(os.getpid).values()
     src, out = tmp_path / "src", tmp_path / "out"
@@ -647,15 +649,15 @@ def test_a_task_past_the_timeout_is_its_exemplars_failure_and_its_worker_restart
     for i in range(3):
         save_image(data.bricks(64, rng=i), src / f"e{i}.png")
     (src / "list.csv").write_text("path,count,size\ne0.png,1000,256\ne1.png,1,32\ne2.png,1,32\n")
-    run = dict(size=32, seed=1, fit=FIT, generate=GEN, client=client, task_timeout=10)
+    run = dict(size=32, seed=1, fit=FIT, generate=GEN, client=client, task_timeout=4)
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
         results = batch.run(src / "list.csv", out, **run)
     assert not [str(w.message) for w in said if "left the cluster" in str(w.message)]  # restarted on purpose
     slow, *others = results
     assert (slow["status"], slow["cause"], slow.get("timed_out"), slow.get("task_timeout")) == ("failed", "input", True,
-                                                                                                10), slow["error"]
-    assert slow["error"].startswith("stopped after the task timeout (10 s, --task-timeout / task_timeout)")
+                                                                                                4), slow["error"]
+    assert slow["error"].startswith("stopped after the task timeout (4 s, --task-timeout / task_timeout)")
     assert [r["status"] for r in others] == ["ok", "ok"]
     assert str(before) not in {r["worker"].split(":")[1] for r in others}  # on the worker restarted
     assert list(client.nthreads().values()) == [1]
