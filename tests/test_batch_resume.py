@@ -9,7 +9,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 import warnings
 from pathlib import Path
 
@@ -95,9 +94,9 @@ def test_a_driver_killed_outright_leaves_the_inputs_hashes_for_the_rerun(tmp_pat
     # machine) the rerun read every byte of every exemplar again, hours of a studio's library. Now it is written
     # as soon as the plan is made, before any exemplar runs.
     src, out = make_folder(tmp_path / "src"), tmp_path / "out"
-    time.sleep(batch_plan.STAT_MARGIN + 0.1)  # files changed within it are not taken on trust
-    code = ("import sys; from tghop import batch; import test_batch_resume as t; "
-            "batch.run(sys.argv[1], sys.argv[2], workers=1, task=t.killing_task)")
+    monkeypatch.setattr(batch_plan, "STAT_MARGIN", 0.0)  # the files were written a moment ago (in the child too)
+    code = ("import sys; from tghop import batch, batch_plan; import test_batch_resume as t; "
+            "batch_plan.STAT_MARGIN = 0.0; batch.run(sys.argv[1], sys.argv[2], workers=1, task=t.killing_task)")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (str(Path(__file__).parent),
                                                                    os.environ.get("PYTHONPATH")) if p)}
     p = subprocess.run([sys.executable, "-c", code, str(src), str(out)], env=env, capture_output=True, timeout=300)
@@ -290,7 +289,7 @@ def test_ctrl_c_while_the_library_is_hashed_keeps_what_was_read(tmp_path, monkey
     # A first run over a studio's library reads every file for its SHA-256 before any work (minutes for terabytes);
     # 0.61 kept none of it after a Ctrl-C there, so the next run read them all again. 0.62 writes what it read.
     src, out = make_folder(tmp_path / "src"), tmp_path / "out"
-    time.sleep(batch_plan.STAT_MARGIN + 0.1)  # files changed within it are not taken on trust
+    monkeypatch.setattr(batch_plan, "STAT_MARGIN", 0.0)  # the files were written a moment ago
     sha256, reads = batch_plan.file_sha256, []
 
     def ctrl_c_at_the_third(path):
