@@ -495,6 +495,16 @@ function fitInSight() {
   if (top < 0 || below) message.scrollIntoView({ block: "nearest" });
 }
 
+// Generate brought into sight once "model ready: generate below" is said and the model's summary shown (0.63: at
+// 1024x700 the summary pushed it below the fold), with the message where both fit in the window, else Generate alone.
+function generateInSight(id) {
+  if (state.modelId !== id) return;  // another model asked for meanwhile
+  const go = $("go").getBoundingClientRect(), said = $("message").getBoundingClientRect();
+  if (go.bottom <= window.innerHeight) return;  // in sight, or above it (the artist scrolled on)
+  const room = window.innerHeight - go.bottom + said.top - 8;  // what of the window is left with both in it
+  window.scrollBy(0, go.bottom - window.innerHeight + (room >= 0 ? Math.min(8, room) : 8));
+}
+
 // `undo`: how to go back when the fit is refused or cancelled (backToWorking); `note`: said with "model ready".
 async function startFit(form, undo, note = "") {
   dropRunningFit();
@@ -560,6 +570,7 @@ function follow(id, job, material, attempt, undo, notes) {
       setModel(id, material, attempt.patches);
       say(["model ready: generate below", ...notes].join(". "));
       const summary = showSummary(id);
+      summary.then(() => generateInSight(id));
       // A material's Generate waits for its summary (setMaterial): the focus goes on to it then
       if (focused && $("go").disabled) {
         summary.then(() => { if (document.activeElement === $("drop")) $("go").focus(); });
@@ -720,4 +731,5 @@ async function uploadModel(file) {
   unsaid(notes || []);  // said here: not again with its summary or its images
   await showSummary(id);
   if (state.modelId === id && state.material) say(`material ${file.name} loaded: generate below (every map)`);
+  generateInSight(id);
 }
