@@ -190,7 +190,7 @@ async function init() {
     $("paint-brush-size").textContent = `${$("paint-brush").value} px`;
   });
   $("paint-reset").addEventListener("click", resetGuide);
-  $("paint-undo").addEventListener("click", () => undoBoard(guide));
+  $("paint-undo").addEventListener("click", undoPaint);
   for (const id of ["height", "width"]) {
     $(id).addEventListener("change", () => { if (!$("paint").hidden) resizeGuide(); });
   }

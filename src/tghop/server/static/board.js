@@ -22,21 +22,26 @@ function makeBoard(canvasId, cursorId, brushId, labelOf) {
     painting: false, history: [] };
 }
 
-// Undo (Paint's): the labels before each stroke, Reset or guide file, the latest last (UNDO_STEPS: inpaint.js).
-function rememberBoard(b) {
-  if (!b.labels) return;
-  b.history.push(b.labels.slice());
+// Undo (Paint's): the labels before each stroke, Reset or guide file, the latest last (UNDO_STEPS: inpaint.js);
+// `what`: the step's name, said when it is undone ("a stroke", "Reset", "the guide file wall.png").
+function rememberBoard(b, what = "a stroke", labels = b.labels) {
+  if (!labels) return;
+  b.history.push({ labels: labels.slice(), what });
   if (b.history.length > UNDO_STEPS) b.history.shift();
   updateButtons();
 }
 
+// The step undone: its name (null: nothing undone).
 function undoBoard(b) {
-  const labels = b.history.pop();
-  if (labels && labels.length === b.h * b.w) {
-    b.labels = labels;
+  const step = b.history.pop();
+  let what = null;
+  if (step && step.labels.length === b.h * b.w) {
+    b.labels = step.labels;
     drawBoard(b, 0, 0, b.w, b.h);
+    what = step.what;
   }
   updateButtons();
+  return what;
 }
 
 // A new blank board of h x w pixels, all label `fill`, shown larger when small (up to 4 times, at most 640 px wide).

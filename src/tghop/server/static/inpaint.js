@@ -176,7 +176,7 @@ function showOwnPicture(blob, name) {
 function onUndoKey(event) {
   if (event.key.toLowerCase() !== "z" || !(event.ctrlKey || event.metaKey) || event.shiftKey || event.altKey) return;
   if (event.target.closest("input:not([type=checkbox]):not([type=range]), select")) return;
-  if (!$("inpaint").hidden) undoInpaint(); else if (!$("paint").hidden) undoBoard(guide); else return;
+  if (!$("inpaint").hidden) undoInpaint(); else if (!$("paint").hidden) undoPaint(); else return;
   event.preventDefault();
 }
 

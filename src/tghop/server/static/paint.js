@@ -113,10 +113,16 @@ function resetGuide() {
   const before = guide.labels, history = guide.history, [h, w] = [guide.h, guide.w];
   resizeGuide(true);
   if (before && guide.h === h && guide.w === w) {
-    guide.history = [...history, before].slice(-UNDO_STEPS);
-    updateButtons();
+    guide.history = history;
+    rememberBoard(guide, "Reset", before);
   }
   sayPaint("");
+}
+
+// Paint's Undo (its button, Ctrl+Z), said as Inpaint's is (0.63: 0.62 said nothing, the line before stayed).
+function undoPaint() {
+  const what = undoBoard(guide);
+  if (what) sayPaint(`${what} undone${guide.history.length ? "" : " (nothing more to undo)"}`);
 }
 
 function resizeGuide(force) {
@@ -174,7 +180,7 @@ async function onGuideFile(file) {
     return;
   }
   const labels = base64Bytes(answer.labels);
-  rememberBoard(guide);
+  rememberBoard(guide, `the guide file ${file.name}`);
   for (let i = 0; i < labels.length; i++) guide.labels[i] = picked[labels[i]].index;
   drawBoard(guide, 0, 0, guide.w, guide.h);
   sayPaint(withWarning(`the guide is ${file.name}: Generate, or paint to change it`, answer.notes.join("; ")));
