@@ -72,3 +72,30 @@ def test_paints_undo_says_what_it_undid(page):
     assert page.is_disabled("#paint-undo")
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
+
+
+def test_zoom_acts_on_inpaints_picture(page):
+    # "zoom 1:1" left Inpaint's picture shown 3 times larger, changing only the tiling far below it (0.62).
+    chromium.load_empty(page)
+    chromium.choose_mode(page, "inpaint")
+    width = "document.getElementById('editor-base').getBoundingClientRect().width"
+
+    def picture(h, w):
+        page.set_input_files("#picture", files=[{"name": f"p{w}.png", "mimeType": "image/png",
+                                                 "buffer": png(np.full((h, w, 3), 90, np.uint8))}])
+        page.wait_for_function(f"editor.name === 'p{w}.png' && document.getElementById('editor').dataset.ready === '1'")
+
+    try:
+        picture(48, 64)
+        assert page.evaluate(width) == 192  # shown larger to paint on
+        page.check("#zoom")
+        assert page.evaluate(width) == 64
+        picture(40, 1600)  # wider than the page: it scrolls in its box, the page does not scroll sideways
+        assert page.evaluate(width) == 1600
+        assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth")
+        page.uncheck("#zoom")
+        assert page.evaluate(width) < 1200
+    finally:
+        page.uncheck("#zoom")
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors

@@ -203,6 +203,7 @@ async function init() {
   $("zoom").addEventListener("change", (e) => {
     document.body.classList.toggle("zoom", e.target.checked);
     exemplarCaption();  // an enlarged exemplar's factor said only while it is enlarged
+    if (!$("inpaint").hidden) sizeEditor();  // Inpaint's picture too (0.63)
   });
   $("exemplar").addEventListener("load", (e) => enlargeSmall(e.target));
   const drop = $("drop");

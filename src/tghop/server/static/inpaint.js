@@ -79,12 +79,14 @@ function growTyped() {
 // larger than lets the mode's row, its tools and the whole picture be seen at once (roomFor; a picture shown at its
 // size stays so), and the strip of fills under it where there is one (0.61: at 1024x700 a 128x192 result filled the
 // window, the fills to pick from below the fold). 0.58 showed a 256x256 result 640 px high under the tools: at
-// 1024x700 it ran below the fold.
+// 1024x700 it ran below the fold. At zoom 1:1, at its size.
 function sizeEditor() {
   const box = $("editor"), img = $("editor-base"), w = img.naturalWidth, h = img.naturalHeight;
   if (!w || !h) return;
   const room = $("inpaint").hidden ? Infinity : roomFor(box, w, h, editorTop(), stripBelow());
-  box.style.width = `${Math.max(w, Math.min(3 * w, 640, room))}px`;
+  // at zoom 1:1 at its size, its pixels the screen's (0.63: 0.62's zoom left it as large as it was)
+  const zoom = document.body.classList.contains("zoom");
+  box.style.width = `${zoom ? w : Math.max(w, Math.min(3 * w, 640, room))}px`;
 }
 
 // The height of the strip of fills under the picture and the gap above it (0: none).
