@@ -99,3 +99,37 @@ def test_zoom_acts_on_inpaints_picture(page):
         page.uncheck("#zoom")
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
+
+
+def test_coocs_crop_numbers_are_crisp_and_readable(page, tiny_cooc_checkpoint):
+    # The numbers were drawn on the canvas at the exemplar's resolution (64x64 shown 128 px: blurred), crop 2's half
+    # under crop 1's outline where the two crops overlap (0.62).
+    chromium.load_empty(page)
+    chromium.choose_mode(page, "cooc")
+    page.set_input_files("#cooc-file", str(tiny_cooc_checkpoint))
+    page.wait_for_function("document.getElementById('cooc-exemplar').dataset.ready === '1'", timeout=30_000)
+    canvas = page.locator("#cooc-exemplar")
+    canvas.scroll_into_view_if_needed()
+    box = canvas.bounding_box()
+    s = box["width"] / 64
+    page.mouse.click(box["x"] + 16 * s, box["y"] + 16 * s)  # crop 1 at (0, 0)
+    page.mouse.click(box["x"] + 40 * s, box["y"] + 40 * s)  # crop 2 over crop 1's corner
+    corners = page.evaluate("cooc.crops.slice(0, 2)")
+    assert corners[0] == [0, 0] and 0 < corners[1][0] < 32 and 0 < corners[1][1] < 32, corners
+    numbers = page.eval_on_selector_all("#cooc-exemplar-box .crop-number", """l => l.map((e) => {
+      const r = e.getBoundingClientRect();
+      return [e.textContent, parseFloat(getComputedStyle(e).fontSize), r.left, r.top, r.right, r.bottom]; })""")
+    assert [n[0] for n in numbers] == ["1", "2"], numbers
+    inner = page.evaluate("(() => { const r = document.getElementById('cooc-exemplar').getBoundingClientRect();"
+                          " return [r.left + 1, r.top + 1, r.width - 2]; })()")
+    scale = inner[2] / 64
+    for (_, font, left, top, right, bottom), (y, x) in zip(numbers, corners):
+        assert font >= 12  # the page's text, whatever the canvas's scale
+        x0, y0 = inner[0] + x * scale, inner[1] + y * scale
+        assert x0 <= left and y0 <= top and right <= x0 + 32 * scale and bottom <= y0 + 32 * scale
+    one, two = numbers
+    assert one[4] <= two[2] or one[5] <= two[3]  # apart
+    # over the canvas and its outlines, not under them
+    assert page.evaluate("getComputedStyle(document.querySelector('.crop-number')).position") == "absolute"
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors

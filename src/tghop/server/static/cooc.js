@@ -175,11 +175,29 @@ function drawCoocExemplar() {
     if (!crop) return;
     ctx.strokeStyle = colourOf(i);
     ctx.strokeRect(crop[1] + 1, crop[0] + 1, size - 2, size - 2);
-    ctx.fillStyle = colourOf(i);
-    ctx.font = `${Math.max(10, Math.round(size / 4))}px sans-serif`;
-    ctx.fillText(String(i + 1), crop[1] + 4, crop[0] + Math.max(10, Math.round(size / 4)));
   });
+  numberCoocCrops();
   canvas.dataset.ready = "1";
+}
+
+// Each placed crop's number in its top left corner, in the page's text over the canvas (0.63: 0.62 drew it on the
+// canvas at the exemplar's own resolution, blurred where the canvas is shown larger, a crop's number half under the
+// outline of a crop over it); numbers of crops at one corner side by side.
+function numberCoocCrops() {
+  const box = $("cooc-exemplar-box"), [h, w] = cooc.info.exemplar_shape, corners = [];
+  for (const old of box.querySelectorAll(".crop-number")) old.remove();
+  cooc.crops.forEach((crop, i) => {
+    if (!crop) return;
+    const number = document.createElement("span");
+    number.className = "crop-number";
+    number.textContent = String(i + 1);
+    number.style.borderColor = colourOf(i);
+    number.style.left = `calc(${100 * crop[1] / w}% + ${corners.filter((c) => c === `${crop}`).length * 1.8}em)`;
+    number.style.top = `${100 * crop[0] / h}%`;
+    number.setAttribute("aria-hidden", "true");  // the crops' buttons above say where each is
+    corners.push(`${crop}`);
+    box.append(number);
+  });
 }
 
 // A click places the active crop centred on it, on the grid of s pixels, inside the exemplar;
