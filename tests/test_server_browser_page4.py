@@ -133,3 +133,18 @@ def test_coocs_crop_numbers_are_crisp_and_readable(page, tiny_cooc_checkpoint):
     assert page.evaluate("getComputedStyle(document.querySelector('.crop-number')).position") == "absolute"
     chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
+
+
+def test_the_boosts_fields_stay_on_one_line_in_a_narrow_window(page, tiny_cooc_checkpoint):
+    # At 400 px the boost's "x factor" field wrapped onto a line of its own, away from the clusters it scales (0.62).
+    chromium.choose_mode(page, "cooc")
+    if page.evaluate("document.getElementById('cooc-work').hidden"):
+        page.set_input_files("#cooc-file", str(tiny_cooc_checkpoint))
+        page.wait_for_function("document.getElementById('cooc-exemplar').dataset.ready === '1'", timeout=30_000)
+    middle = "(s) => { const r = document.querySelector(s).getBoundingClientRect(); return (r.top + r.bottom) / 2; }"
+    for width in (400, 1024):
+        with window(page, width, 800):
+            tops = [page.evaluate(middle, f"#cooc-boost-{k}") for k in ("a", "b", "factor")]
+            assert max(tops) - min(tops) < 4, (width, tops)
+    chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors
