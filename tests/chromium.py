@@ -20,6 +20,16 @@ POLL_MS = 20
 INSTALL = "install it: apt-get install chromium; or set TGHOP_CHROMIUM"
 
 
+@contextlib.contextmanager
+def window(page, width, height):
+    """The page in a window of ``width`` x ``height``, scrolled to its top; back to the tests' 1200x1400 after."""
+    page.set_viewport_size({"width": width, "height": height})
+    try:
+        page.evaluate("window.scrollTo(0, 0)")
+        yield
+    finally:
+        page.set_viewport_size({"width": 1200, "height": 1400})
+
 def missing():
     """None when :data:`CHROMIUM` is an executable, else the reason (with the fix)."""
     if os.path.isfile(CHROMIUM) and os.access(CHROMIUM, os.X_OK):

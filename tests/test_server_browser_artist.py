@@ -41,17 +41,6 @@ def choose_inpaint(page):
     page.wait_for_selector("#editor[data-ready='1']")
 
 
-@contextlib.contextmanager
-def window(page, width, height):
-    """The page in a window of ``width`` x ``height``, scrolled to its top; back to the tests' 1200x1400 after."""
-    page.set_viewport_size({"width": width, "height": height})
-    try:
-        page.evaluate("window.scrollTo(0, 0)")
-        yield
-    finally:
-        page.set_viewport_size({"width": 1200, "height": 1400})
-
-
 def rock_files():
     """[[base64 PNG, name]] of a 128x160 albedo (another size than the built-ins') and its normal map."""
     import base64
@@ -174,7 +163,7 @@ def test_inpaint_shows_its_picture_whole_with_its_tools_at_1024x700(page):
     # At 1024x700 the picture to paint on (a 256x256 result shown 640 px high) began below the fold when Inpaint was
     # chosen: the artist had to scroll to paint, and could not see the brush's tools and the whole picture at once.
     bricks_result(page, 3, (256, 256))
-    with window(page, 1024, 700):
+    with chromium.window(page, 1024, 700):
         choose_inpaint(page)
         boxes = {s: page.locator(s).bounding_box() for s in ("#modes-row", "#brush", "#fill", "#mask")}
         for selector, box in boxes.items():
@@ -196,7 +185,7 @@ def test_inpaint_shows_its_picture_with_the_brushs_tools_in_a_narrow_window(page
     # At 400x800 the mode's row, its help, the tools and the Extend row took the window, and the picture to paint on
     # began below the fold: chosen, Inpaint showed no picture.
     bricks_result(page, 3, (128, 192))
-    with window(page, 400, 800):
+    with chromium.window(page, 400, 800):
         choose_inpaint(page)
         with contextlib.suppress(sync_api.TimeoutError):  # laid out (0.61 waited 300 ms); the checks below say what
             page.wait_for_function("() => ['brush', 'fill', 'mask'].every((id) => {"
@@ -217,7 +206,7 @@ def test_paint_shows_its_canvas_whole_with_its_tools_at_1024x700(page):
     chromium.fit_builtin(page, "cells")
     page.fill("#height", "256")
     page.fill("#width", "256")
-    with window(page, 1024, 700):
+    with chromium.window(page, 1024, 700):
         chromium.choose_mode(page, "paint")
         boxes = {s: page.locator(s).bounding_box() for s in ("#modes-row", "#paint-colours", "#paint-go", "#guide")}
         for selector, box in boxes.items():
@@ -471,7 +460,7 @@ def test_a_strip_of_fills_is_seen_with_its_picture_at_1024x700(page):
     # At 1024x700 a 128x192 result filled the window to paint on, and the fills to pick from came under it, below the
     # fold: "3 fills ... under the picture: click one to pick it", of which the artist saw none.
     bricks_result(page, 3, (128, 192))
-    with window(page, 1024, 700):
+    with chromium.window(page, 1024, 700):
         choose_inpaint(page)
         stroke_across(page)
         page.fill("#inpaint-seed", "2")
@@ -514,7 +503,7 @@ def test_the_cooc_edit_shows_its_canvas_whole_with_the_crops_at_1024x700(page, t
     # At 1024x700 the co-occurrence edit's canvas (128x192, shown 640 px wide) began 700 px under the mode's row when a
     # checkpoint was loaded (0.59): the artist scrolled between the crops placed on the exemplar and the canvas.
     chromium.load_empty(page)
-    with window(page, 1024, 700):
+    with chromium.window(page, 1024, 700):
         load_checkpoint(page, tiny_cooc_checkpoint)
         selectors = ("#cooc-message", "#cooc-crops", "#cooc-exemplar", "#cooc-edit-go", "#cooc-guide")
 
@@ -634,7 +623,7 @@ def test_a_checkpoint_loaded_in_a_narrow_window_shows_where_to_place_the_crops(p
     # At 400x800 a checkpoint loaded brought the edit's canvas into view, the crops, the exemplar and the message
     # "click on the exemplar to place crop 1" above it, out of sight (0.61): placing crops comes first.
     chromium.load_empty(page)
-    with window(page, 400, 800):
+    with chromium.window(page, 400, 800):
         load_checkpoint(page, tiny_cooc_checkpoint)
         assert page.text_content("#cooc-message").startswith("click on the exemplar to place crop 1")
         for selector in ("#cooc-message", "#cooc-crops", "#cooc-exemplar"):
@@ -653,7 +642,7 @@ def test_a_window_made_lower_sizes_paints_canvas_again(page):
     page.fill("#width", "256")
     chromium.choose_mode(page, "paint")
     assert page.locator("#guide").bounding_box()["height"] > 600  # room for it in the tall window
-    with window(page, 1024, 700):
+    with chromium.window(page, 1024, 700):
         page.evaluate("document.getElementById('modes-row').scrollIntoView({ block: 'start' })")
         page.wait_for_function("(() => { const r = document.getElementById('guide').getBoundingClientRect();"
                                " return r.bottom <= innerHeight && r.height >= 256; })()", timeout=5_000)

@@ -6,7 +6,6 @@ the fills that came, and a server gone said with its fix (a checkpoint loaded th
 built-in for a model file; a fit's and an upload's progress in sight in a narrow window; Enter in a mode's field
 pressing its button; Inpaint's Undo of a stroke or a Clear said."""
 
-import contextlib
 import io
 
 import numpy as np
@@ -16,17 +15,6 @@ import chromium
 from conftest import FAST_FIT, LiveServer, png, save_texture
 
 chromium.require()
-
-
-@contextlib.contextmanager
-def window(page, width, height):
-    """The page in a window of ``width`` x ``height``, scrolled to its top; back to the tests' 1200x1400 after."""
-    page.set_viewport_size({"width": width, "height": height})
-    try:
-        page.evaluate("window.scrollTo(0, 0)")
-        yield
-    finally:
-        page.set_viewport_size({"width": 1200, "height": 1400})
 
 
 def lines(page, selector):
@@ -50,7 +38,7 @@ def test_the_last_long_helps_are_cut_to_two_lines_in_a_narrow_window(page, tiny_
     page.wait_for_function("document.getElementById('cooc-exemplar').dataset.ready === '1'", timeout=30_000)
     helps = ("#maps-help", "#quality-help", "#cooc-exemplar-help", "#cooc-guide-help")
     more = "(h) => document.querySelector(`${h} + button.more-help`)"
-    with window(page, 400, 800):
+    with chromium.window(page, 400, 800):
         for help in helps:
             assert lines(page, help) == 2, help
             button = page.evaluate_handle(more, help).as_element()
@@ -62,7 +50,7 @@ def test_the_last_long_helps_are_cut_to_two_lines_in_a_narrow_window(page, tiny_
         # quality's "more" on a line of its own, above Generate (beside it, it read as one of the form's buttons)
         assert page.eval_on_selector("#quality-help + button.more-help", "b => b.getBoundingClientRect().bottom") <= \
             page.eval_on_selector("#go", "b => b.getBoundingClientRect().top")
-    with window(page, 1024, 700):
+    with chromium.window(page, 1024, 700):
         for help in helps:
             assert lines(page, help) >= 2 and not page.evaluate_handle(more, help).as_element().is_visible(), help
     # Why quality is off is a paragraph of its own after the help, never cut with it
@@ -206,7 +194,7 @@ def test_a_fit_and_an_upload_show_their_progress_in_a_narrow_window(page, tmp_pa
     # ready" out of sight, the pick seeming to do nothing (0.62); so did a model file's "uploading" and "loaded".
     chromium.load_fresh(page, FAST_FIT)  # the fit settings open
     save_texture(tmp_path / "wall.npz")
-    with window(page, 400, 800):
+    with chromium.window(page, 400, 800):
         page.select_option("#builtin", "bricks")
         page.wait_for_selector("#fit-status:not([hidden])")
         assert in_sight(page, "#fit-status") and in_sight(page, "#message")

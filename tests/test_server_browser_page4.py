@@ -3,7 +3,6 @@ real uvicorn server (0.63): Generate brought into sight with "model ready: gener
 saying what it undid, as Inpaint's does; zoom 1:1 acting on Inpaint's picture; Co-occurrence's crop numbers crisp
 over its exemplar, never under another crop's outline; the boost's fields on one line at 400 px."""
 
-import contextlib
 
 import numpy as np
 
@@ -11,17 +10,6 @@ import chromium
 from conftest import FAST_FIT, png
 
 chromium.require()
-
-
-@contextlib.contextmanager
-def window(page, width, height):
-    """The page in a window of ``width`` x ``height``, scrolled to its top; back to the tests' 1200x1400 after."""
-    page.set_viewport_size({"width": width, "height": height})
-    try:
-        page.evaluate("window.scrollTo(0, 0)")
-        yield
-    finally:
-        page.set_viewport_size({"width": 1200, "height": 1400})
 
 
 IN_SIGHT = "(s) => { const r = document.querySelector(s).getBoundingClientRect();" \
@@ -32,7 +20,7 @@ def test_model_ready_brings_generate_into_sight(page):
     # At 1024x700 with the fit settings open, "model ready: generate below" came with Generate below the fold, under
     # the model's summary (0.62): the artist had to find it.
     chromium.load_fresh(page, FAST_FIT)  # the fit settings open
-    with window(page, 1024, 700):
+    with chromium.window(page, 1024, 700):
         page.select_option("#builtin", "bricks")
         chromium.fit_builtin(page, "bricks")
         page.wait_for_function(IN_SIGHT, arg="#go", timeout=10_000)
@@ -143,7 +131,7 @@ def test_the_boosts_fields_stay_on_one_line_in_a_narrow_window(page, tiny_cooc_c
         page.wait_for_function("document.getElementById('cooc-exemplar').dataset.ready === '1'", timeout=30_000)
     middle = "(s) => { const r = document.querySelector(s).getBoundingClientRect(); return (r.top + r.bottom) / 2; }"
     for width in (400, 1024):
-        with window(page, width, 800):
+        with chromium.window(page, width, 800):
             tops = [page.evaluate(middle, f"#cooc-boost-{k}") for k in ("a", "b", "factor")]
             assert max(tops) - min(tops) < 4, (width, tops)
     chromium.choose_mode(page, "view")
