@@ -377,8 +377,8 @@ def load_exemplar(spec: str, *, downscale=False, dtype="float64", has_downscale=
 def _refuse_a_slip(spec, builtins):
     """An exemplar ``spec`` that is no file but a newcomer's slip, refused saying what was meant (0.59; 0.58 said
     only "no such file; check the path"): a built-in exemplar's name without ``builtin:`` (``tghop synth bricks``),
-    or a number, the second of ``--size 512 512``, which click takes for one more SOURCE."""
-    import re
+    or a number, the second of ``--size 512 512`` taken for one more SOURCE (with --size typed a usage error, 0.63)."""
+    from .options import refuse_split_size, split_size_message
 
     name = os.fspath(spec)
     if os.path.lexists(name):
@@ -386,9 +386,9 @@ def _refuse_a_slip(spec, builtins):
     if name in builtins:
         raise InvalidImageError(f"{name}: no such file; the built-in exemplar is builtin:{name}")
     context = click.get_current_context(silent=True)
-    if re.fullmatch(r"\d+", name) and context is not None and any(p.name == "size" for p in context.command.params):
-        raise InvalidImageError(f"{name}: no such file; --size takes one value, HEIGHTxWIDTH (--size 512x1024: 1024 "
-                                "wide), or one number for a square")
+    refuse_split_size(context, [name])
+    if name.isdecimal() and context is not None and any(p.name == "size" for p in context.command.params):
+        raise InvalidImageError(split_size_message(name))
 
 
 def warn_written_with_8(label: str, spec: str, output=None, *, several=()):

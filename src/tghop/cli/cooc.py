@@ -16,7 +16,7 @@ from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
 from .._limits import MAX_BOOST
 from .common import Progress, check_model_output, check_output, check_outputs, load_exemplar, user_errors
-from .options import QUIET_OPTION, FloatRange, Size
+from .options import QUIET_OPTION, FloatRange, Size, refuse_split_size
 
 #: Longest morph strip, in condition cells.
 MAX_CELLS = 4096
@@ -347,6 +347,7 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows, quiet):
 
     del quiet  # taken as every command takes it: nothing here draws a progress bar
     with user_errors():
+        refuse_split_size(click.get_current_context(), sources)  # --size 512 512: before the checkpoint is read
         check_output(output, allow_stdout=True)
         check_outputs([("-o", output)], [("MODEL", model_file), ("--mask", mask),
                                          *[("SOURCE", spec) for spec in sources if not spec.startswith("crop:")]])

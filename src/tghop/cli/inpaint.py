@@ -13,7 +13,7 @@ from .common import (Progress, check_output, check_outputs, is_builtin, is_model
                      map_names, count_outputs, quiet_tifffile, refuse_albedo_as_map, refuse_colour_map_out_of_place,
                      read_image, draw_seed, tell_steps, tell_seed, user_errors, warn_lost_depth, examples, stage_paths,
                      material_stage_files, MATERIAL_STAGES, save_with_stages)
-from .options import MAX_COUNT, QUIET_OPTION, Size, depth_option, scale_option
+from .options import MAX_COUNT, QUIET_OPTION, Size, depth_option, refuse_split_size, scale_option
 
 __all__ = ["inpaint", "extend", "ANCHOR_CHOICES", "MAPS_HELP"]
 
@@ -213,6 +213,7 @@ def _warn_untileable(tile, shape, size, image):
 def _check_maps(map_paths, with_maps, last):
     """MAPs only with --maps (a stray argument is most likely a typo), and --maps with some."""
     if map_paths and not with_maps:
+        refuse_split_size(click.get_current_context(silent=True), map_paths[:1])  # extend's --size 512 512 (0.63)
         raise click.UsageError(f"an argument too many after {last} ({map_paths[0]}); to fill a whole material's "
                                f"maps too, give them after --maps")
     if with_maps and not map_paths:

@@ -10,6 +10,7 @@ the command line and the library refuse the same values with the same words.
 from __future__ import annotations
 
 import math
+import os
 import re
 
 import click
@@ -19,7 +20,7 @@ from ..fit_options import OFF, setting_value
 
 __all__ = ["MAX_COUNT", "DOWNSCALE_HELP", "EXCLUDE_HELP", "QUIET_OPTION", "depth_option", "ChannelRule", "Size",
            "FloatRange", "SettingType", "model_options", "generation_options", "FIT_OPTION_PARAMS", "generation_params",
-           "given_options"]
+           "given_options", "refuse_split_size"]
 
 #: Largest accepted --count.
 MAX_COUNT = 1000
@@ -251,6 +252,24 @@ def given_options(ctx, names):
         if param.name in names and ctx.get_parameter_source(param.name) == ParameterSource.COMMANDLINE:
             out.append(param.opts[0] if param.opts else param.name)
     return out
+
+
+def refuse_split_size(ctx, values):
+    """The second number of ``--size 512 512``, which click takes for one more SOURCE (or MAP), refused as the usage
+    error it is, naming --size's form (exit status 2 before any work, 0.63; 0.62 said the same with status 1 when the
+    number was read as a file): a number among ``values`` that is no file, with --size typed."""
+    if ctx is None or not given_options(ctx, ["size"]):
+        return
+    for value in values:
+        name = os.fspath(value)
+        if re.fullmatch(r"\d+", name) and not os.path.lexists(name):
+            raise click.UsageError(split_size_message(name))
+
+
+def split_size_message(name):
+    """What a number ``name`` taken for a file most likely is: the second of ``--size 512 512``."""
+    return f"{name}: no such file; --size takes one value, HEIGHTxWIDTH (--size 512x1024: 1024 wide), or one number " \
+           "for a square"
 
 
 def refuse_patch_refine_without_statistics(ctx, generation, planned):

@@ -21,7 +21,7 @@ from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_
 from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
                       depth_option, generation_options, generation_params, given_options, model_options,
-                      refuse_patch_refine_of_saved, refuse_patch_refine_without_statistics)
+                      refuse_patch_refine_of_saved, refuse_patch_refine_without_statistics, refuse_split_size)
 
 __all__ = ["fit", "synth", "patches", "clusters", "info"]
 
@@ -318,6 +318,7 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
     progress = Progress(not quiet)
     seed, drawn = draw_seed(seed)
     with user_errors(progress):
+        refuse_split_size(ctx, sources[1:])  # --size 512 512: before any work (0.63)
         if maps_given:
             raise click.UsageError("synth takes no --maps: fit the material first ('tghop fit ALBEDO --maps MAP... "
                                    "-o MAT.npz'), then 'tghop synth MAT.npz -o OUT' writes OUT and OUT_<map> for "
