@@ -335,6 +335,9 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
                            "pic.npz is an image, not a model file; to fit a model from it, pick it as the exemplar "
                            "(the API: POST it to /api/models as the file field 'image')")
     assert "tghop fit" not in message  # a command line's advice means nothing to a web client
+    # The field `model` alone, as docs/serve.md says (0.62 took a file field of any name: `other`).
+    assert_error(post("/api/models/upload", files={"other": ("mine.npz", good)}), 400,
+                 "no model file (a file came as 'other'): send it as the file field 'model' (or as the whole body)")
     assert_error(post("/api/models/upload", content=exemplar_png(40)), 400, "the upload is an image", "/api/models")
     # 0.62: the page's fix first ("send a model file written by 'tghop fit'" before)
     assert_error(post("/api/models/upload", content=b""), 400, "the upload is empty; pick a model file downloaded "

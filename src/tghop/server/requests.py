@@ -23,7 +23,7 @@ __all__ = ["RequestError", "check_channel_counts", "check_multipart_end", "decod
            "http_headers", "http_message", "parse_bool", "parse_fit_settings", "parse_generation", "parse_growth",
            "parse_guided", "parse_guide_labels", "parse_morph", "page_words", "safe_name", "file_stem",
            "content_disposition", "query_value", "MAX_MODELS", "PAGE_FIELDS",
-           "MAX_TRANSITION"]
+           "MAX_TRANSITION", "long_part_name", "MAX_PART_HEADER"]
 
 #: Most models in one guided image (a painted guide or a remix).
 MAX_MODELS = 8
@@ -130,18 +130,53 @@ def content_disposition(filename: str, ascii_name: str) -> str:
     return f"attachment; filename=\"{ascii_name}\"; filename*=UTF-8''{urllib.parse.quote(filename, safe='')}"
 
 
+def _boundary(content_type: str):
+    """A multipart ``content_type``'s boundary (bytes), or None."""
+    found = re.search(r'boundary=(?:"([^"]+)"|([^;,\s]+))', content_type, re.IGNORECASE)
+    return None if found is None else (found.group(1) or found.group(2)).encode("latin-1", "replace")
+
+
 def check_multipart_end(content_type: str, body: bytes) -> None:
     """400 when a multipart ``body`` lacks its closing delimiter (``--BOUNDARY--``): empty or cut short.
     The parser takes such a body without a word and drops its last part (the fields sent then seemed
     missing: "no exemplar")."""
-    found = re.search(r'boundary=(?:"([^"]+)"|([^;,\s]+))', content_type, re.IGNORECASE)
-    if found is None:  # the parser says what is wrong
+    boundary = _boundary(content_type)
+    if boundary is None:  # the parser says what is wrong
         return
-    boundary = (found.group(1) or found.group(2)).encode("latin-1", "replace")
     if b"--" + boundary + b"--" not in body:
         shown = boundary.decode("latin-1")[:70]
         raise RequestError(400, f"malformed multipart request (no closing boundary --{shown}--: the body of "
                                 f"{len(body):,} bytes is empty or cut short); send the whole form")
+
+
+#: The longest header line of a multipart part the parser reads (python-multipart's limit, 4096 + 128 bytes: its
+#: "Invalid multipart data." beyond), rounded down: the header names the field and the file.
+MAX_PART_HEADER = 4096
+
+
+def long_part_name(content_type: str, body: bytes):
+    """The one line saying what is too long in a multipart ``body`` the parser refused, or None: a part's header line
+    over :data:`MAX_PART_HEADER` bytes, by its file name or its field name (0.63; 0.62 said "malformed multipart
+    request (Invalid multipart data.)" of a file name of 5,000 characters)."""
+    boundary = _boundary(content_type)
+    if boundary is None:
+        return None
+    for part in body.split(b"--" + boundary)[1:]:
+        for line in part.split(b"\r\n\r\n", 1)[0].split(b"\r\n"):
+            if len(line) <= MAX_PART_HEADER:
+                continue
+            filename = re.search(rb'filename\*?="?([^"\r\n]*)', line)
+            field = re.search(rb'(?<![\w*])name="([^"\r\n]*)"', line)
+            fix = "(a multipart part's header holds about 4,000 characters)"
+            if filename is not None and len(filename.group(1)) > MAX_PART_HEADER // 2:
+                return (f"a file name of {len(filename.group(1).decode('utf-8', 'replace')):,} characters is too long "
+                        f"{fix}; rename the file shorter and send it again")
+            if field is not None and len(field.group(1)) > MAX_PART_HEADER // 2:
+                return (f"a field name of {len(field.group(1).decode('utf-8', 'replace')):,} characters is too long "
+                        f"{fix}; name each field as docs/serve.md does ('image', 'model', ...)")
+            return (f"a multipart part's header line of {len(line):,} bytes is too long {fix}; send shorter names "
+                    "and headers")
+    return None
 
 
 def http_headers(exc) -> dict:

@@ -18,7 +18,7 @@ from .._errors import ImageTooLargeError, OpaqueAlphaWarning, TGHopError, Transp
 from .._json import RepeatedKeyError, loads_unique
 from ..image_decode import share_text
 from . import materials
-from .requests import RequestError, check_multipart_end, page_words, safe_name
+from .requests import RequestError, check_multipart_end, long_part_name, page_words, safe_name
 
 __all__ = ["MAX_UPLOAD_BYTES", "MAX_FIT_BYTES", "DRAIN", "MAX_DECODES", "MAX_DECODES_WAITING", "RETRY_AFTER", "Gate",
            "read_body", "read_form", "each_file_within", "json_body", "read_image", "read_notes", "note_line",
@@ -148,8 +148,9 @@ async def read_form(request, body: bytes, fields: str = "a form with an 'image' 
         if words.startswith("Part exceeded maximum size"):  # a file part without a file name is a field: 1 MB at most
             raise RequestError(400, f"a form field over 1 MB ({words}): a file sent without a file name? Send each "
                                     "file with its file name, as a browser or curl -F NAME=@FILE does") from None
-        raise RequestError(400, f"malformed multipart request ({words}); send the form as a browser or "
-                                "curl -F NAME=@FILE sends it") from None
+        raise RequestError(400, long_part_name(request.headers["content-type"], body)
+                           or f"malformed multipart request ({words}); send the form as a browser or "
+                              "curl -F NAME=@FILE sends it") from None
     out, twice = {}, []
     for name, value in form.multi_items():
         if name in out:

@@ -142,14 +142,17 @@ def page_refit(exc, filename: str) -> str:
 
 
 async def upload_model(server, request):
-    """``POST /api/models/upload``: the file as the whole body or the multipart field ``model``."""
+    """``POST /api/models/upload``: the file as the whole body or the multipart field ``model`` (0.63: that field
+    alone, as ``/api/cooc`` takes ``checkpoint`` alone; 0.62 took a file field of any name)."""
     body = await read_body(request)
     if request.headers.get("content-type", "").startswith("multipart/form-data"):
         fields = await read_form(request, body)
-        files = [v for v in fields.values() if isinstance(v, tuple)]
-        if not files:
-            raise RequestError(400, "no model file: send it as the field 'model' (or as the whole body)")
-        filename, content = fields["model"] if isinstance(fields.get("model"), tuple) else files[0]
+        upload = fields.get("model")
+        if not isinstance(upload, tuple):
+            others = sorted(name for name, value in fields.items() if isinstance(value, tuple))
+            sent = f" (a file came as {', '.join(repr(n) for n in others)})" if others else ""
+            raise RequestError(400, f"no model file{sent}: send it as the file field 'model' (or as the whole body)")
+        filename, content = upload
     else:
         filename, content = None, body  # no name: messages say "the upload"
     model_id, notes = await server.decode(request, store_upload, server, content, safe_name(filename, "the upload"))
