@@ -344,7 +344,7 @@ def test_bad_inputs_get_one_line_and_their_status(client, fitted, live_server):
                  "from this page (Download model) or written by tghop fit")
     # 422: settings out of range, sizes over the output limit
     assert_error(post("/api/models", files={"builtin": (None, "bricks"), "n_clusters": (None, "0")}), 422,
-                 "n_clusters must be")
+                 "(the API's n_clusters) must be")
     assert_error(post("/api/models", files={"builtin": (None, "bricks"), "colour": (None, "1")}), 422,
                  "unknown fit setting 'colour'")
     images = f"/api/models/{model_id}/images"
@@ -404,13 +404,24 @@ def fit_with(client, **fields):
 
 
 def test_a_fit_field_that_does_not_parse_is_named(client):
-    assert_error(fit_with(client, n_clusters="abc"), 422, "n_clusters: 'abc' is not an integer (or auto)")
+    # The page's field first, then the API's name, as the fit's messages name them (0.63; 0.62: "n_clusters: ...")
+    assert_error(fit_with(client, n_clusters="abc"), 422,
+                 "the field clusters (N) (the API's n_clusters): 'abc' is not an integer (or auto)")
     assert_error(fit_with(client, gamma_mode="xyz"), 422, "gamma_mode: 'xyz' is not one of 'absolute', 'relative'")
     assert_error(fit_with(client, stride="1.5"), 422, "stride: '1.5' is not an integer")
     assert_error(fit_with(client, layout_factor="abc"), 422, "layout_factor: 'abc' is not an integer (or none)")
     assert_error(fit_with(client, k1="abc"), 422, "k1: 'abc' is not a channel count; give a count")
     # a value out of range named Python's None, where the form writes auto (its field's placeholder)
-    assert_error(fit_with(client, n_clusters="0"), 422, "n_clusters must be an integer >= 1 or auto, got 0")
+    assert_error(fit_with(client, n_clusters="0"), 422,
+                 "the field clusters (N) (the API's n_clusters) must be an integer >= 1 or auto, got 0")
+    assert_error(fit_with(client, n_clusters="99999"), 422,
+                 "the field clusters (N) (the API's n_clusters): 99999 is more than the server allows; give at most "
+                 "5,000")
+    for name, field in (("n_clusters", "clusters (N)"), ("n_codewords", "codewords (W)"),
+                        ("max_patches", "training patches")):  # 0.62 named the API's name alone
+        assert_error(fit_with(client, **{name: "1" * 100_000}), 422,
+                     f"the field {field} (the API's {name}): '{'1' * 40}'... is 100,000 characters, too long for a "
+                     "setting; give a value of at most 64 characters")
     # out of the image's range: refused before a job starts (the job failed), in the API's name
     message = assert_error(fit_with(client, k1="100000"), 422, "K1 (k1) is 100000, but hop 1 of an exemplar of 3 ")
     assert "--k1" not in message

@@ -23,7 +23,7 @@ __all__ = ["RequestError", "check_channel_counts", "check_multipart_end", "decod
            "http_headers", "http_message", "parse_bool", "parse_fit_settings", "parse_generation", "parse_growth",
            "parse_guided", "parse_guide_labels", "parse_morph", "page_words", "safe_name", "file_stem",
            "content_disposition", "query_value", "MAX_MODELS", "PAGE_FIELDS",
-           "MAX_TRANSITION", "long_part_name", "MAX_PART_HEADER"]
+           "MAX_TRANSITION", "long_part_name", "MAX_PART_HEADER", "field_first"]
 
 #: Most models in one guided image (a painted guide or a remix).
 MAX_MODELS = 8
@@ -82,6 +82,16 @@ def page_words(message: str) -> str:
     text = _CLI_OPTION.sub("", " ".join(str(message).split()))
     text = _SETTING_IN_PARENS.sub(lambda m: f"(the field {PAGE_FIELDS[m[1]]}; the API's {m[1]})", text)
     return _LARGER_SETTING.sub(lambda m: f"a larger number in the field {PAGE_FIELDS[m[1]]} (the API's {m[1]})", text)
+
+
+def field_first(name: str, message: str) -> str:
+    """A ``message`` on the fit setting ``name`` that begins with that name, begun with the page's field where the page
+    names it otherwise (:data:`PAGE_FIELDS`), then the API's: ``n_clusters: 'abc' is not ...`` -> ``the field clusters
+    (N) (the API's n_clusters): 'abc' is not ...`` (0.63, as :func:`page_words` names them inside a message; 0.62 began
+    with n_clusters)."""
+    if name in PAGE_FIELDS and re.match(rf"{name}\b", message):
+        return f"the field {PAGE_FIELDS[name]} (the API's {name}){message[len(name):]}"
+    return message
 
 
 def _name_chars(name) -> str:
@@ -234,7 +244,8 @@ def parse_fit_settings(fields: dict) -> dict:
             raise RequestError(422, f"{name} must be a plain form field, not a file")
         text = raw.strip()
         if len(text) > 64:  # the messages below repeat the value
-            raise RequestError(422, f"{name}: {text[:40]!r}... is {len(text):,} characters, too long for a setting")
+            raise RequestError(422, field_first(name, f"{name}: {text[:40]!r}... is {len(text):,} characters, too long "
+                                                      "for a setting; give a value of at most 64 characters"))
         try:
             if name == "paper":
                 options[name] = parse_bool(name, text)
@@ -252,12 +263,13 @@ def parse_fit_settings(fields: dict) -> dict:
                 else:
                     value = s.check(None if text == "" else _parse_field(s, text), label=name, cli=True)
                     if s.cli_high is not None and value is not None and value > s.cli_high:
-                        raise TGHopError(f"{name} {text} is more than the server allows ({s.cli_high:,g})")
+                        raise TGHopError(f"{name}: {text} is more than the server allows; give at most "
+                                         f"{s.cli_high:,g}")
                     options[name] = OFF if value is None else value  # "none": off, not the default
         except ValueError as exc:  # TGHopError is one
             message = str(exc) if isinstance(exc, TGHopError) else (
                 f"{name}: {text[:40]!r} is not a channel count; give a count, a fraction in (0, 1] or 'knee'")
-            raise RequestError(422, message) from None
+            raise RequestError(422, field_first(name, message)) from None
     try:
         fit_params(options, api=True)  # settings that do not go together (patch_size without k1, k2)
     except TGHopError as exc:
