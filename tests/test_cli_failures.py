@@ -460,6 +460,23 @@ def test_an_unknown_extension_names_every_one_tghop_writes(folder):
     assert code == 2  # a clash of options, as above (it was 1)
 
 
+@pytest.mark.skipif(sys.platform in ("win32", "darwin"), reason="file names there are Unicode")
+def test_a_file_name_that_is_not_utf8_is_printed_as_the_terminal_shows_it(tmp_path, capsys):
+    # 0.62 printed Python's escapes of its bytes ("Error: caf\\udce9.png: not a readable image ...").
+    import warnings
+
+    from tghop.cli.common import user_errors
+
+    name = os.fsdecode(b"caf\xe9.png")
+    (tmp_path / name).write_bytes(b"junk")
+    code, _, err, exc = invoke("synth", name, "-o", "out.png", cwd=tmp_path)
+    assert_one_line(code, err, "Error: caf\ufffd.png: not a readable image", exception=exc)
+    assert "\\udc" not in err
+    with user_errors():  # warnings too, as they are printed
+        warnings.warn(f"{name} has more than 8 bits a channel")
+    assert capsys.readouterr().err == "Warning: caf\ufffd.png has more than 8 bits a channel\n"
+
+
 def test_an_image_given_as_a_model_gets_a_command_that_can_be_pasted(folder):
     # The fit command it suggested left a name with spaces unquoted: pasted, it fitted "my".
     import shlex

@@ -2,7 +2,8 @@
 (:func:`warn`, :func:`collect_warnings`). Only the standard library's small modules are imported (``contextlib``,
 ``contextvars``, ``inspect``, ``os``, ``sys``, ``warnings``): always loaded, the CLI's --help and --version load
 only this. The command line turns a
-:class:`TGHopError` into one line and exit status 1 in :func:`tghop.cli.common.user_errors`."""
+:class:`TGHopError` into one line and exit status 1 in :func:`tghop.cli.common.user_errors`, printed as
+:func:`terminal_line` writes it."""
 
 import contextlib
 import contextvars
@@ -13,7 +14,7 @@ import warnings
 
 __all__ = ["TGHopError", "InvalidImageError", "ImageTooLargeError", "MissingExtraError", "ModelFileError",
            "NonNumericError", "NotFittedError", "TransparencyWarning", "OpaqueAlphaWarning",
-           "HINT_DOWNSCALE_YOURSELF", "warn", "collect_warnings"]
+           "HINT_DOWNSCALE_YOURSELF", "warn", "collect_warnings", "terminal_line"]
 
 #: What to do about an image over the pixel limit where no --downscale option is at hand
 #: (the command line's commands without it, the web server's uploads).
@@ -120,6 +121,19 @@ class OpaqueAlphaWarning(UserWarning):
     def __init__(self, message: str, name: str = ""):
         super().__init__(message)
         self.name = name
+
+
+#: A message's characters as a terminal line shows them: control characters (a newline in a file's name, say) as
+#: Python writes them in a string, so that a message stays one line; lone surrogates, the bytes of a file name that
+#: are not UTF-8 as Python decodes them (``os.fsdecode``), as the replacement character.
+_SHOWN = {**{c: repr(chr(c))[1:-1] for c in (*range(32), 127)}, **dict.fromkeys(range(0xD800, 0xE000), "\ufffd")}
+
+
+def terminal_line(message) -> str:
+    """``message`` as the command line prints it: one line, and a file name that is not UTF-8 as a file manager or
+    ``ls`` in a UTF-8 terminal shows it, each byte that does not decode as U+FFFD (0.63; 0.62 printed Python's
+    escapes, ``caf\\udce9.png`` for ``caf\\xe9.png``)."""
+    return str(message).translate(_SHOWN)
 
 
 #: The list :func:`collect_warnings` keeps this thread's (this context's) warnings in; None outside it.

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import click
 
-from .._errors import HINT_DOWNSCALE_YOURSELF, InvalidImageError, TGHopError
+from .._errors import HINT_DOWNSCALE_YOURSELF, InvalidImageError, TGHopError, terminal_line
 from .._formats import COOC_CHECKPOINT, READ_SUFFIXES, checkpoint_note, is_model_file, model_file_kind
 
 __all__ = ["Progress", "fail", "Terminated", "stop_message", "user_errors", "load_exemplar", "is_builtin",
@@ -201,14 +201,12 @@ class Progress:
             self.stage = None
 
 
-#: Control characters (a newline in a file's name, say) as Python writes them in a string: an error stays one line.
-_CONTROL = {c: repr(chr(c))[1:-1] for c in (*range(32), 127)}
 
 
 def fail(message: str, code: int = 1):
-    """Print ``Error: message`` on one line (control characters escaped) and exit with ``code``."""
+    """Print ``Error: message`` on one line (:func:`~tghop._errors.terminal_line`) and exit with ``code``."""
     try:
-        click.echo(f"Error: {message.translate(_CONTROL)}", err=True)
+        click.echo(f"Error: {terminal_line(message)}", err=True)
     except BrokenPipeError:  # stderr's reader went away: the exit status still says it failed
         pass
     sys.exit(code)
@@ -265,7 +263,7 @@ def _show_now(progress):
         if issubclass(category, (UserWarning, RuntimeWarning)):
             if progress is not None and progress.bar is not None and sys.stderr.isatty():
                 click.echo("", err=True)  # the bar's line ends; its next update draws it again below
-            click.echo(f"Warning: {message}", err=True)
+            click.echo(f"Warning: {terminal_line(message)}", err=True)
 
     return show
 
