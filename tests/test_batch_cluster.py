@@ -5,6 +5,7 @@ own, ended at its end. Exemplars are made in code; the tasks are tiny or stand-i
 
 import json
 import os
+import socket
 import subprocess
 import sys
 import threading
@@ -344,6 +345,50 @@ def test_a_worker_gone_while_it_is_checked_is_no_worker_without_tghop():
         check_workers_tghop(Client({"tcp://e:1": "0.1.0", "tcp://f:1": "0.2.0"}), ["tcp://e:1", "tcp://f:1"])
 
 
+def test_a_timed_out_record_names_its_worker_as_other_records_do():
+    # 0.62's timed-out record named the worker by its address (tcp://...), other records by host:pid (run_task's);
+    # the host:pid is the nanny's answer (the worker itself is busy with the task). A worker without a nanny: its
+    # address, as before.
+    from tghop import batch_dask
+    from tghop.batch_dask import _stop_overdue
+
+    class Future:
+        def __init__(self, key):
+            self.key = key
+
+    class Client:
+        def __init__(self, nanny):
+            self.nanny, self.asked = nanny, []
+
+        def processing(self):
+            return {"tcp://10.0.0.7:4100": ["k1"], "tcp://10.0.0.8:4100": []}
+
+        def run(self, function, workers, nanny, on_error):
+            self.asked.append((function, workers, nanny))
+            if not self.nanny:
+                raise ValueError("no nanny")
+            return {address: "node7:1234" for address in workers}
+
+        def cancel(self, futures, force):
+            pass
+
+        def restart_workers(self, workers, timeout, raise_for_error):
+            pass
+
+    job = {"name": "slow", "seed": 1}
+    client = Client(nanny=True)
+    [(_, record)], restarted = _stop_overdue(client, [Future("k1")], {"k1": job}, {"k1": (0.0, time.time())}, 10)
+    assert record["worker"] == "node7:1234" and record["timed_out"] and restarted == ["tcp://10.0.0.7:4100"]
+    assert client.asked == [(batch_dask.worker_process, ["tcp://10.0.0.7:4100"], True)]
+    [(_, record)], _ = _stop_overdue(Client(nanny=False), [Future("k1")], {"k1": job}, {"k1": (0.0, time.time())}, 10)
+    assert record["worker"] == "tcp://10.0.0.7:4100"
+
+    class Nanny:
+        pid = 4321
+
+    assert batch_dask.worker_process(Nanny()) == f"{socket.gethostname()}:4321"
+
+
 def test_an_exemplar_on_two_workers_that_left_is_named_once():
     # its first worker killed, its retry's too: both removals list it, and the warning said "running, a, a" (0.58's
     # first version, seen in CI's warnings)
@@ -658,6 +703,7 @@ def test_a_task_past_the_timeout_is_its_exemplars_failure_and_its_worker_restart
     assert (slow["status"], slow["cause"], slow.get("timed_out"), slow.get("task_timeout")) == ("failed", "input", True,
                                                                                                 4), slow["error"]
     assert slow["error"].startswith("stopped after the task timeout (4 s, --task-timeout / task_timeout)")
+    assert slow["worker"] == f"{socket.gethostname()}:{before}"  # as other records name it (0.62: tcp://...)
     assert [r["status"] for r in others] == ["ok", "ok"]
     assert str(before) not in {r["worker"].split(":")[1] for r in others}  # on the worker restarted
     assert list(client.nthreads().values()) == [1]

@@ -24,7 +24,8 @@ from .batch_task import one_line, run_checked, timed_out_record
 __all__ = ["INSTALL_HINT", "WORKER_MALLOC", "WORKER_ENVIRON", "WORKERS_PER_CORE", "QUIET_CLUSTER", "import_distributed",
            "local_cluster",
            "worker_environ", "environ_kept", "ctrl_c_ignored", "ctrl_c_deferred", "dask_setup", "tune_malloc",
-           "affinity_cores", "connect", "check_cluster", "check_workers_tghop", "run_distributed", "SchedulerLostError"]
+           "affinity_cores", "connect", "check_cluster", "check_workers_tghop", "run_distributed", "SchedulerLostError",
+           "worker_process"]
 
 
 #: What to install for running on Dask.
@@ -535,10 +536,31 @@ def _next_group(finished, lost, every=2.0, overdue=None):
 RESTART_TIMEOUT = 120
 
 
+def worker_process(dask_worker) -> str:
+    """Run on a worker's nanny (``Client.run(..., nanny=True)``): the worker process's ``host:pid``, as the records of
+    its tasks name it (:func:`tghop.batch_task.run_task`)."""
+    import socket
+
+    return f"{socket.gethostname()}:{dask_worker.pid}"
+
+
+def _worker_names(client, addresses) -> dict:
+    """address -> ``host:pid`` of the workers at ``addresses``, asked of their nannies (a busy worker's own event loop
+    may wait on its task); a worker without a nanny, or one whose nanny fails, is left out (named by its address)."""
+    if not addresses:
+        return {}
+    try:
+        said = client.run(worker_process, workers=list(addresses), nanny=True, on_error="return")
+    except Exception:  # noqa: BLE001 - no nanny, or the scheduler lost: the address names it
+        return {}
+    return {address: name for address, name in said.items() if isinstance(name, str)}
+
+
 def _stop_overdue(client, late, by_key, handed, seconds) -> tuple:
     """``(done, restarted)``: the (job, record) of each future of ``late`` (running past the task timeout,
     ``seconds``; ``handed``: key -> the (monotonic, wall) time it was handed out), a record of
-    :func:`tghop.batch_task.timed_out_record`, and the addresses of their workers, each restarted (through its nanny;
+    :func:`tghop.batch_task.timed_out_record` naming its worker as other records do, ``host:pid`` (0.63; 0.62 gave its
+    address, ``tcp://...``), and the addresses of their workers, each restarted (through its nanny;
     Dask cannot stop a running thread) once the tasks are cancelled, so that it is free again. A worker without a
     nanny (``dask worker --no-nanny``, a cluster of threads) is not restarted: its thread runs on to the task's end,
     and its files are dropped (the exemplar's claim is gone once its line is written)."""
@@ -546,9 +568,10 @@ def _stop_overdue(client, late, by_key, handed, seconds) -> tuple:
         on = {key: address for address, running in client.processing().items() for key in running}
     except Exception:  # noqa: BLE001 - a scheduler lost: said by the next call of the run
         on = {}
-    done = [(by_key[fut.key], {**timed_out_record(by_key[fut.key], seconds, handed[fut.key][1], lost=fut.key in on),
-                               "worker": on.get(fut.key)}) for fut in late]
     restarted = sorted({on[fut.key] for fut in late if fut.key in on})
+    named = _worker_names(client, restarted)
+    done = [(by_key[fut.key], {**timed_out_record(by_key[fut.key], seconds, handed[fut.key][1], lost=fut.key in on),
+                               "worker": named.get(on.get(fut.key), on.get(fut.key))}) for fut in late]
     with contextlib.suppress(Exception):
         client.cancel(late, force=True)
     if restarted:
