@@ -160,6 +160,18 @@ def choose_mode(page, name):
     assert page.is_checked(f"#mode-{name}")
 
 
+def open_paint(page, height, width):
+    """Paint on a canvas of ``height`` x ``width``: the first two models ticked, the second colour chosen, the guide
+    scrolled into view."""
+    page.fill("#height", str(height))
+    page.fill("#width", str(width))
+    choose_mode(page, "paint")
+    for box in page.query_selector_all("#paint-models input[type=checkbox]")[:2]:
+        box.check()
+    page.locator("#paint-colours label").nth(1).click()
+    page.locator("#guide").scroll_into_view_if_needed()
+
+
 def fit_builtin(page, name):
     """Pick builtin:``name`` in the menu and wait until its fit is done (from the server's cache when it is
     there) and its model is the working one, summarised."""

@@ -198,6 +198,7 @@ def test_inpaint_shows_its_picture_with_the_brushs_tools_in_a_narrow_window(page
         chromium.choose_mode(page, "view")
     assert not page.errors, page.errors
 
+
 def test_paint_shows_its_canvas_whole_with_its_tools_at_1024x700(page):
     # At 1024x700 Paint's canvas (a 256x256 output shown 640 px high) began low under Paint's tools when the mode was
     # chosen: two thirds of it below the fold, the artist scrolling between the brush colours and the canvas.

@@ -784,13 +784,7 @@ def test_paint_undoes_a_stroke_and_a_reset(page):
     if page.eval_on_selector_all("#morph-a option", "l => l.length") < 2:  # run alone: no earlier test's fits
         fit(page, "bricks")
         fit(page, "cells")
-    page.fill("#height", "48")
-    page.fill("#width", "64")
-    chromium.choose_mode(page, "paint")
-    for box in page.query_selector_all("#paint-models input[type=checkbox]")[:2]:
-        box.check()
-    page.locator("#paint-colours label").nth(1).click()
-    page.locator("#guide").scroll_into_view_if_needed()
+    chromium.open_paint(page, 48, 64)
     labels = "Array.from(guide.labels)"
     blank = page.evaluate(labels)
     assert page.is_disabled("#paint-undo") and len(set(blank)) == 1

@@ -34,13 +34,7 @@ def test_paints_undo_says_what_it_undid(page):
     chromium.load_fresh(page, FAST_FIT)
     chromium.fit_builtin(page, "bricks")
     chromium.fit_builtin(page, "cells")
-    page.fill("#height", "48")
-    page.fill("#width", "64")
-    chromium.choose_mode(page, "paint")
-    for box in page.query_selector_all("#paint-models input[type=checkbox]")[:2]:
-        box.check()
-    page.locator("#paint-colours label").nth(1).click()
-    page.locator("#guide").scroll_into_view_if_needed()
+    chromium.open_paint(page, 48, 64)
     box = page.locator("#guide").bounding_box()
     s = box["width"] / 64
     page.mouse.move(box["x"] + 8 * s, box["y"] + 12 * s)
