@@ -160,6 +160,15 @@ def choose_mode(page, name):
     assert page.is_checked(f"#mode-{name}")
 
 
+def undo_said(page, button, message, times):
+    """What ``message`` (a selector) says after each of ``times`` clicks of the Undo ``button``: a list."""
+    said = []
+    for _ in range(times):
+        page.click(button)
+        said.append(page.text_content(message))
+    return said
+
+
 def open_paint(page, height, width):
     """Paint on a canvas of ``height`` x ``width``: the first two models ticked, the second colour chosen, the guide
     scrolled into view."""

@@ -250,10 +250,7 @@ def test_inpaints_undo_of_a_stroke_or_a_clear_says_so(page):
         page.mouse.move(box["x"] + box["width"] - 10, box["y"] + box["height"] * y, steps=4)
         page.mouse.up()
     page.click("#clear")
-    said = []
-    for _ in range(3):
-        page.click("#undo")
-        said.append(page.text_content("#inpaint-message"))
+    said = chromium.undo_said(page, "#undo", "#inpaint-message", 3)
     assert said == ["Clear undone", "a stroke undone", "a stroke undone (nothing more to undo)"], said
     assert page.is_disabled("#undo")
     chromium.choose_mode(page, "view")

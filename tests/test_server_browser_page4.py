@@ -46,10 +46,7 @@ def test_paints_undo_says_what_it_undid(page):
     page.set_input_files("#guide-file", files=[{"name": "halves.png", "mimeType": "image/png", "buffer": png(guide)}])
     page.wait_for_function("document.getElementById('paint-message').textContent.startsWith('the guide is halves.png')")
     page.click("#paint-reset")
-    said = []
-    for _ in range(3):
-        page.click("#paint-undo")
-        said.append(page.text_content("#paint-message"))
+    said = chromium.undo_said(page, "#paint-undo", "#paint-message", 3)
     assert said == ["Reset undone", "the guide file halves.png undone", "a stroke undone (nothing more to undo)"], said
     assert page.is_disabled("#paint-undo")
     chromium.choose_mode(page, "view")
