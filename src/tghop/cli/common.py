@@ -201,8 +201,6 @@ class Progress:
             self.stage = None
 
 
-
-
 def fail(message: str, code: int = 1):
     """Print ``Error: message`` on one line (:func:`~tghop._errors.terminal_line`) and exit with ``code``."""
     try:

@@ -3,8 +3,9 @@
 // whole, in order, before DOMContentLoaded):
 //   common.js    the page's state (state, editor) and what every part uses: $, say and sayIn (a status line,
 //                an error an alert), keepFocus, showStage (a progress bar's label, its value told), errorOf,
-//                updateButtons, withBusy and busyFetch (Stop), withProgress (a generation's bar), answerOf and
-//                postImage (the API's answers), withWarning (a result's status with the server's warning)
+//                updateButtons, withBusy and busyFetch (Stop), answeredFetch and noAnswer (a server that does not
+//                answer), withProgress (a generation's bar), answerOf and postImage (the API's answers), withWarning
+//                (a result's status with the server's warning), undoneLine (what an Undo says)
 //   download.js  download links; a material's maps as one ZIP
 //   fit.js       1. Exemplar: the fit of an exemplar and its maps, its progress; a model file
 //   generate.js  2. Generate and 3. Result: generating, the strip of seeds, the result and its tiling

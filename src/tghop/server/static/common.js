@@ -112,15 +112,25 @@ async function withBusy(button, work, report) {
   }
 }
 
-// fetch() that the Stop of withBusy aborts. No answer at all (the server stopped, its terminal closed) is said with the
-// fix (noAnswer), not as the browser's bare "Failed to fetch" (0.62).
-async function busyFetch(url, options) {
+// fetch() that the Stop of withBusy aborts (answeredFetch).
+function busyFetch(url, options) {
+  return answeredFetch(url, { ...options, signal: state.abort ? state.abort.signal : undefined });
+}
+
+// fetch() whose lack of any answer (the server stopped, its terminal closed) is said with the fix (noAnswer), not as
+// the browser's bare "Failed to fetch" (0.62); a Stop's abort stays an AbortError.
+async function answeredFetch(url, options) {
   try {
-    return await fetch(url, { ...options, signal: state.abort ? state.abort.signal : undefined });
+    return await fetch(url, options);
   } catch (e) {
     if (e.name === "AbortError") throw e;  // Stop
     throw new Error(noAnswer(e));
   }
+}
+
+// What an Undo says: the step undone (`what`), and whether it was the last (`left`: the steps still to undo).
+function undoneLine(what, left) {
+  return `${what} undone${left ? "" : " (nothing more to undo)"}`;
 }
 
 // A request the server did not answer (fetch's TypeError `e`): said with what to do.

@@ -68,26 +68,17 @@ async function uploadCooc(file) {
   }
 }
 
-// fetch() of the co-occurrence routes, no answer said with the fix (noAnswer).
-async function coocFetch(url, options) {
-  try {
-    return await fetch(url, options);
-  } catch (e) {
-    throw new Error(noAnswer(e));
-  }
-}
-
 async function loadCooc(file) {
   if (!file) return;
   const radio = $("mode-cooc");
   if (!radio.checked) { radio.checked = true; setMode("cooc"); }
   sayCooc(`uploading ${file.name}`);
-  const response = await coocFetch("/api/cooc", {
+  const response = await answeredFetch("/api/cooc", {
     method: "POST", body: file, headers: { "Content-Type": "application/octet-stream" },
   });
   if (!response.ok) { sayCooc(await errorOf(response), true); return; }
   const { id, notes } = await response.json();  // notes: what reading the file warned of, as a model upload's
-  const info = await coocFetch(`/api/cooc/${id}`);
+  const info = await answeredFetch(`/api/cooc/${id}`);
   if (!info.ok) { sayCooc(await errorOf(info), true); return; }
   cooc.id = id;
   cooc.info = await info.json();

@@ -138,7 +138,7 @@ function undoInpaint() {
     context2d($("mask")).putImageData(step.mask, 0, 0);
     updateButtons();
     // said (0.63): 0.62 left the line before, "fill undone: ..." after a stroke undone after it
-    sayInpaint(`${step.what} undone${editor.history.length ? "" : " (nothing more to undo)"}`);
+    sayInpaint(undoneLine(step.what, editor.history.length));
     return;
   }
   const history = editor.history, p = step.picture;  // the picture before: shown again, its hole painted

@@ -122,7 +122,7 @@ function resetGuide() {
 // Paint's Undo (its button, Ctrl+Z), said as Inpaint's is (0.63: 0.62 said nothing, the line before stayed).
 function undoPaint() {
   const what = undoBoard(guide);
-  if (what) sayPaint(`${what} undone${guide.history.length ? "" : " (nothing more to undo)"}`);
+  if (what) sayPaint(undoneLine(what, guide.history.length));
 }
 
 function resizeGuide(force) {
