@@ -619,6 +619,24 @@ def test_a_command_line_users_option_name_is_told_its_python_name(name, said):
     assert str(error.value).startswith(f"invalid parameter {name!r} for TGHop; {said}; valid: "), str(error.value)
     with pytest.raises(TGHopError, match=r"^invalid parameter 'k1' for Saab; valid: "):  # not a TGHop: no hint
         Saab().set_params(k1=0)
+    # ... and to the constructor (0.64; 0.63 let Python's bare "unexpected keyword argument 'k1'" out): a TypeError,
+    # as Python's, with set_params' words
+    with pytest.raises(TypeError) as error:
+        TGHop(**{name: 1})
+    assert str(error.value).startswith(f"TGHop() got an unexpected keyword argument {name!r}; {said}; valid: "), \
+        str(error.value)
+
+
+def test_a_constructor_given_an_unknown_keyword_names_the_valid_ones_and_a_models_setting_its_place():
+    with pytest.raises(TypeError, match=r"^Saab\(\) got an unexpected keyword argument 'k1'; valid: n_components$"):
+        Saab(k1=0)
+    with pytest.raises(TypeError, match=r"^Material\(\) got an unexpected keyword argument 'gamma'; gamma is its "
+                                        r"model's: Material\(model=TGHop\(gamma=...\)\); valid: model, normal, rng$"):
+        Material(gamma=0.01)
+    with pytest.raises(TypeError, match=r"^Material\(\) got an unexpected keyword argument 'k1'; a setting of its "
+                                        r"model, Material\(model=TGHop\(...\)\); the command line's --k1 is "):
+        Material(k1=9)
+    assert TGHop(gamma=0.01).gamma == 0.01 and Material(rng=1).rng == 1  # the constructor's own keywords as ever
 
 
 @pytest.mark.parametrize("make, use, said", [

@@ -54,6 +54,27 @@ class BaseEstimator:
     The constructor stores its arguments and does nothing else.
     """
 
+    def __new__(cls, *args, **kwargs):
+        """Refuse, before the constructor runs, a keyword it does not take, with the words of :meth:`set_params`
+        (a TypeError, as Python's own; 0.64: 0.63 let Python's "unexpected keyword argument 'k1'" out, which names
+        neither the Python name of the command line's --k1 nor the valid ones). The constructor itself still only
+        stores its arguments; a copy or an unpickled estimator, made without arguments, is not checked."""
+        self = super().__new__(cls)
+        if kwargs and not cls._takes_any_keyword():
+            valid = cls._get_param_names()
+            unknown = next((name for name in kwargs if name not in valid), None)
+            if unknown is not None:
+                raise TypeError(f"{cls.__name__}() got an unexpected keyword argument {unknown!r}"
+                                f"{self._unknown_param_hint(unknown)}; valid: {', '.join(valid)}")
+        return self
+
+    @classmethod
+    @functools.cache
+    def _takes_any_keyword(cls):
+        """Whether the constructor takes ``**kwargs`` (then every keyword is its own to refuse)."""
+        return cls.__init__ is not object.__init__ and any(
+            p.kind is p.VAR_KEYWORD for p in inspect.signature(cls.__init__).parameters.values())
+
     @classmethod
     @functools.cache  # per class: its constructor's signature does not change (check_is_fitted reads it often)
     def _get_param_names(cls):

@@ -241,6 +241,17 @@ class Material(ImageInputMixin, BaseEstimator):
         self.normal = normal
         self.rng = rng
 
+    def _unknown_param_hint(self, name):
+        """A TGHop setting (or its command line's name) given to the material (0.64): it belongs to its ``model``."""
+        from .synthesis import TGHop
+
+        own = super()._unknown_param_hint(name)  # random_state: rng, the material's own
+        if not own and name in TGHop._get_param_names():
+            return f"; {name} is its model's: Material(model=TGHop({name}=...))"
+        if not own and TGHop()._unknown_param_hint(name):
+            return f"; a setting of its model, Material(model=TGHop(...)){TGHop()._unknown_param_hint(name)}"
+        return own
+
     # ---------------------------------------------------------------- fitting
     def _checked_params(self):
         """``model`` and ``normal``, checked (one-line :class:`TGHopError` naming each)."""
