@@ -2129,3 +2129,15 @@ def test_a_folder_or_file_in_the_way_of_an_exemplars_results_is_named_and_nothin
     (done,) = run(src, out, workers=1)
     assert done["status"] == "ok" and sorted(p.name for p in (out / "a").iterdir()) == ["a.npz", "a.png",
                                                                                            "exemplar.png"]
+
+
+@pytest.mark.skipif(sys.platform in ("win32", "darwin"), reason="file names there are Unicode")
+def test_the_contact_sheet_of_a_name_that_is_not_utf8_links_its_bytes_and_shows_it_as_a_terminal_does(tmp_path):
+    # 0.63 failed to write it ("'utf-8' codec can't encode character '\\udce9': surrogates not allowed", a traceback)
+    name = os.fsdecode(b"caf\xe9")
+    record = {"name": name, "status": "ok", "source": f"in/{name}.png", "outputs": [f"{name}/{name}_1.png"],
+              "model": f"{name}/{name}.npz", "thumbnail": f"{name}/thumb.png"}
+    page = batch.write_contact_sheet(tmp_path, [record, {**record, "name": "b", "status": "failed",
+                                                         "error": f"in/{name}.png: not a readable image"}]).read_text()
+    assert 'href="caf%E9/caf%E9_1.png"' in page and 'href="caf%E9/caf%E9.npz"' in page
+    assert "<b>caf\ufffd</b>" in page and "in/caf\ufffd.png: not a readable image" in page

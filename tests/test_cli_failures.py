@@ -476,6 +476,24 @@ def test_a_file_name_that_is_not_utf8_is_printed_as_the_terminal_shows_it(tmp_pa
         warnings.warn(f"{name} has more than 8 bits a channel")
     assert capsys.readouterr().err == "Warning: caf\ufffd.png has more than 8 bits a channel\n"
 
+@pytest.mark.skipif(sys.platform in ("win32", "darwin"), reason="file names there are Unicode")
+def test_every_line_naming_a_file_that_is_not_utf8_shows_it_as_the_terminal_does(folder, tmp_path):
+    # 0.63 showed it so in errors and warnings alone: "1 image of 64x64 written to caf\\udce9.png", tghop info's
+    # "tghop model caf\\udce9.npz" (stdout: the raw byte), the batch's summary
+    model, out, junk = (os.fsdecode(b"caf\xe9" + suffix) for suffix in (b".npz", b".png", b"_d"))
+    (tmp_path / model).write_bytes((folder / "model.npz").read_bytes())
+    code, _, err, _ = invoke("synth", model, "-o", out, "--size", "64x64", "--seed", "1", cwd=tmp_path)
+    assert code == 0, err
+    assert err.splitlines()[-1] == "1 image of 64x64 written to caf\ufffd.png"
+    assert "\\udc" not in err and re.search(r"^\[\d\d:\d\d:\d\d\] writing: done in ", err, re.M)  # progress lines too
+    code, text, err, _ = invoke("info", model, cwd=tmp_path)
+    assert code == 0 and text.splitlines()[0] == "tghop model caf\ufffd.npz", text + err
+    (tmp_path / junk).mkdir()
+    (tmp_path / junk / "a.png").write_bytes(b"junk")
+    code, _, err, _ = invoke("batch", junk, "-o", junk + "_out", "--workers", "1", cwd=tmp_path)
+    assert code == 1 and "\\udc" not in err, err
+    assert "results in caf\ufffd_d_out, contact sheet caf\ufffd_d_out/index.html" in err, err
+
 
 def test_an_image_given_as_a_model_gets_a_command_that_can_be_pasted(folder):
     # The fit command it suggested left a name with spaces unquoted: pasted, it fitted "my".

@@ -5,10 +5,11 @@ resources, so that the folder can be moved or served as it is."""
 from __future__ import annotations
 
 import html
+import os
 from pathlib import Path
 from urllib.parse import quote
 
-from ._errors import TGHopError
+from ._errors import TGHopError, terminal_line
 
 __all__ = ["write_contact_sheet", "CONTACT_SHEET"]
 
@@ -23,12 +24,19 @@ LAZY = ' loading="lazy" decoding="async"'
 
 
 def _href(path: str) -> str:
-    return quote(path, safe="/")
+    """A relative link to ``path``: its bytes percent-encoded, those of a name that is not UTF-8 too (0.64: the sheet of
+    such a folder or exemplar failed to be written, "surrogates not allowed")."""
+    return quote(os.fsencode(path), safe="/")
+
+
+def _esc(text) -> str:
+    """``text`` for the page: HTML-escaped, a file name that is not UTF-8 as a terminal shows it (U+FFFD)."""
+    return html.escape(terminal_line(text))
 
 
 def _anchor(name: str) -> str:
     """A row's id, by its exemplar's name (a folder name: no space, unique)."""
-    return "x-" + html.escape(name)
+    return "x-" + _esc(name)
 
 
 def _failed_links(records) -> str:
@@ -37,7 +45,7 @@ def _failed_links(records) -> str:
     failed = [r for r in records if r.get("status") != "ok"]
     if not failed:
         return ""
-    links = ", ".join(f'<a href="#{_anchor(r["name"])}">{html.escape(r["name"])}</a>' for r in failed)
+    links = ", ".join(f'<a href="#{_anchor(r["name"])}">{_esc(r["name"])}</a>' for r in failed)
     return f"\n<details><summary>The {len(failed):,} not done</summary><p>{links}</p></details>"
 
 
@@ -52,7 +60,7 @@ def write_contact_sheet(outdir, records, *, total=None, ledger=None) -> Path:
     ok = sum(r.get("status") == "ok" for r in records)
     rows = []
     for r in records:
-        esc = html.escape
+        esc = _esc
         thumb = (f'<img src="{_href(r["thumbnail"])}" alt="{esc(r["name"])}" width="96"{LAZY}>'
                  if r.get("thumbnail") else "")
         outputs = " ".join(f'<a href="{_href(f)}"><img src="{_href(f)}" alt="{esc(f)}" height="96"{LAZY}></a>'
@@ -66,7 +74,7 @@ def write_contact_sheet(outdir, records, *, total=None, ledger=None) -> Path:
                     f"<td>{status}{error}</td><td>{seconds}</td><td>{outputs}</td><td>{model}</td></tr>")
     left = (total or 0) - len(records)
     unfinished = f" {left:,} not finished yet: run the same command again." if left > 0 else ""
-    link = f'Ledger: <a href="{_href(ledger)}">{html.escape(ledger)}</a>.' if ledger else ""
+    link = f'Ledger: <a href="{_href(ledger)}">{_esc(ledger)}</a>.' if ledger else ""
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>tghop batch: {ok:,} of {max(total or 0, len(records)):,} done</title>
 <style>body{{font-family:sans-serif;margin:1em}}table{{border-collapse:collapse}}

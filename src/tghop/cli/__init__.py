@@ -6,7 +6,8 @@ synth, patches, clusters, info; :mod:`~tghop.cli.guided`: synth with several SOU
 :mod:`~tghop.cli.inpaint`: inpaint, extend; :mod:`~tghop.cli.evaluation`: evaluate,
 baseline; :mod:`~tghop.cli.cooc`: the co-occurrence cGAN; :mod:`~tghop.cli.batch`: batch;
 :mod:`~tghop.cli.serve`: serve), and below them the shared helpers
-(:mod:`~tghop.cli.options`, :mod:`~tghop.cli.common`). The ``tghop`` command itself
+(:mod:`~tghop.cli.options`, :mod:`~tghop.cli.common`, :mod:`~tghop.cli.lines`: the lines a command prints, as a
+terminal shows them). The ``tghop`` command itself
 starts in :func:`tghop.__main__.run`.
 """
 

@@ -13,6 +13,7 @@ import click
 
 from .._errors import TGHopError
 from ..fit_options import fit_params
+from .lines import say
 from .common import Progress, examples, fail, quiet_tifffile, stop_message, user_errors
 from .options import MAX_COUNT, QUIET_OPTION, Size, generation_options, generation_params, model_options
 
@@ -46,8 +47,8 @@ class BatchProgress(Progress):
         elif done and (done == total or done % -(-total // 10) == 0):
             # "finished", the failed among them: "306 of 306 done, 49 failed" read as 306 made, where the
             # summary's "257 of 306 exemplars done" counts those that succeeded
-            click.echo(f"{stage}: {done:,} of {total:,} finished ({done - self.failed:,} done, {self.failed:,} "
-                       f"failed), {self.running} running", err=True)
+            say(f"{stage}: {done:,} of {total:,} finished ({done - self.failed:,} done, {self.failed:,} "
+                f"failed), {self.running} running")
 
     def result(self, record, counts):
         self.failed, self.running = counts["failed"], counts["running"]
@@ -58,7 +59,7 @@ class BatchProgress(Progress):
         bar of 50 read as the whole batch of 1,250)."""
         self.planned = plan  # for the line after Ctrl-C, -q too
         if self.enabled and (plan["done_before"] or plan["failed_before"]):
-            click.echo(plan_line(plan), err=True)
+            say(plan_line(plan))
 
 
 def plan_line(plan) -> str:
@@ -199,7 +200,7 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
     # b/x.png: "x.png: ..."), those alike on one line
     warned = [(r, message) for r in results if not r.get("skipped") for message in r.get("warnings") or []]
     for line in alike_lines(warned):
-        click.echo(f"Warning: {line}", err=True)
+        say(f"Warning: {line}")
     failed = [r for r in results if r["status"] != "ok"]
     known = [r for r in failed if r.get("skipped")]  # failed before, input unchanged: not tried, not listed again
     skipped = sum(bool(r.get("skipped")) for r in results) - len(known)
@@ -209,19 +210,19 @@ def batch(source, outdir, count, size, seed, workers, scheduler, retries, prune,
         said = "removed" if o["pruned"] and not o["kept"] else "kept, not pruned (above)" if o.get("held") else \
             "kept" if not o["pruned"] else \
             f"its files removed, the folder kept for what tghop did not make ({', '.join(o['kept'][:3])})"
-        click.echo(f"no longer in SOURCE: {o['name']}: {said}", err=True)
+        say(f"no longer in SOURCE: {o['name']}: {said}")
     for r in results:  # 0.62: made again under the new name, the old folder kept as no longer in SOURCE (0.61)
         if r.get("renamed"):
-            click.echo(f"renamed: {r['renamed_from']} is now {r['name']}: its files moved, not made again", err=True)
-    click.echo(f"{ok:,} of {_exemplars(len(results))} done{earlier}; results in {outdir}, "
-               f"contact sheet {outdir}/index.html{_orphans(orphans)}", err=True)
+            say(f"renamed: {r['renamed_from']} is now {r['name']}: its files moved, not made again")
+    say(f"{ok:,} of {_exemplars(len(results))} done{earlier}; results in {outdir}, "
+        f"contact sheet {outdir}/index.html{_orphans(orphans)}")
     if known:
-        click.echo(f"{len(known):,} skipped as failed before, their input and settings unchanged "
-                   f"({', '.join(r['name'] for r in known[:3])}{' ...' if len(known) > 3 else ''}; their errors are in "
-                   f"{outdir}/batch.jsonl); fix or remove them, or {RETRY_HINT}", err=True)
+        say(f"{len(known):,} skipped as failed before, their input and settings unchanged "
+            f"({', '.join(r['name'] for r in known[:3])}{' ...' if len(known) > 3 else ''}; their errors are in "
+            f"{outdir}/batch.jsonl); fix or remove them, or {RETRY_HINT}")
     if failed:
         for line in alike_lines([(r, r["error"]) for r in failed if not r.get("skipped")]):
-            click.echo(f"failed: {line}", err=True)
+            say(f"failed: {line}")
         said = f"; {len(known):,} of them before" if known else ""
         fail(f"{len(failed):,} of {_exemplars(len(results))} failed{said}: {', '.join(r['name'] for r in failed[:10])}"
              f"{' ...' if len(failed) > 10 else ''} (see {outdir}/batch.jsonl)", 1)

@@ -103,7 +103,7 @@ class Progress:
         import time
 
         clock = time.strftime("%H:%M:%S", time.localtime(when))
-        click.echo(f"[{clock}] {text}" + (f" ({self.note})" if self.note else ""), err=True)
+        click.echo(terminal_line(f"[{clock}] {text}" + (f" ({self.note})" if self.note else "")), err=True)
 
     def _log(self, stage, done, total):
         import time
@@ -139,7 +139,7 @@ class Progress:
         if stage != self.stage:
             self.close()
             self.stage, self.done = stage, 0
-            self.bar = click.progressbar(length=max(total, 1), label=f"{stage:<14}", file=sys.stderr,
+            self.bar = click.progressbar(length=max(total, 1), label=terminal_line(f"{stage:<14}"), file=sys.stderr,
                                          show_eta=self.show_eta, show_percent=True,
                                          item_show_func=None if self.note is None else lambda _: self.note)
             self.bar.__enter__()
@@ -629,7 +629,7 @@ def tell_seed(seed, drawn, what="the same image"):
     """After a run without --seed, one line giving the seed drawn (:func:`draw_seed`) and the option that
     makes ``what`` again; nothing where --seed was given."""
     if drawn:
-        click.echo(f"seed {seed} drawn (no --seed given): --seed {seed} makes {what} again", err=True)
+        click.echo(terminal_line(f"seed {seed} drawn (no --seed given): --seed {seed} makes {what} again"), err=True)
 
 
 def tell_steps(paths, count, maps=False):
@@ -638,8 +638,8 @@ def tell_steps(paths, count, maps=False):
     morph after)."""
     names = [os.path.basename(str(p)) for p in paths]
     if names:
-        click.echo(f"steps written beside {'it' if count == 1 else 'each'}{', each with its maps' if maps else ''}: "
-                   f"{', '.join(names)}", err=True)
+        click.echo(terminal_line(f"steps written beside {'it' if count == 1 else 'each'}"
+                                 f"{', each with its maps' if maps else ''}: {', '.join(names)}"), err=True)
 
 
 def count_outputs(output: str, count: int) -> list:
@@ -833,8 +833,8 @@ def write_materials(material, output, outputs, size, depth, make, inputs, progre
             progress.close()
     written = ", ".join(path for _, path, _ in plans[0])
     more = f" (and {len(plans) - 1} more set{'s' if len(plans) > 2 else ''})" if len(plans) > 1 else ""
-    click.echo(f"{len(plans)} material{'s' if len(plans) > 1 else ''} of {size[0]}x{size[1]} written to "
-               f"{written}{more}", err=True)
+    click.echo(terminal_line(f"{len(plans)} material{'s' if len(plans) > 1 else ''} of {size[0]}x{size[1]} written "
+                             f"to {written}{more}"), err=True)
     return first
 
 

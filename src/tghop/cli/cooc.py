@@ -15,6 +15,7 @@ import click
 from .._errors import TGHopError
 from .._formats import OUTPUT_HELP
 from .._limits import MAX_BOOST
+from .lines import say
 from .common import Progress, check_model_output, check_output, check_outputs, load_exemplar, user_errors
 from .options import QUIET_OPTION, FloatRange, Size, refuse_split_size
 
@@ -264,12 +265,10 @@ def train(exemplar, output, paper, steps, settings, resume, max_minutes, seed, q
         model.save(output)
     total = model.settings_["n_steps"]
     if model.step_ < total:
-        click.echo(f"stopped early after {max_minutes:g} minutes, at step {model.step_} of {total}; checkpoint "
-                   f"written to {output} (continue it with: tghop cooc train {exemplar} -o {output} --resume)",
-                   err=True)
+        say(f"stopped early after {max_minutes:g} minutes, at step {model.step_} of {total}; checkpoint "
+            f"written to {output} (continue it with: tghop cooc train {exemplar} -o {output} --resume)")
     else:
-        click.echo(f"{model.step_} step{'s' if model.step_ != 1 else ''} trained; checkpoint written to {output}",
-                   err=True)
+        say(f"{model.step_} step{'s' if model.step_ != 1 else ''} trained; checkpoint written to {output}")
 
 
 @cooc.command(short_help="A strip (or grid) whose co-occurrence moves from A's to B's")
@@ -314,7 +313,7 @@ def morph(model_file, a, b, output, length, grid, seed, windows, quiet):
         save_image(image, output)
     if output != "-":  # as tghop morph says it
         what = "1 strip" if grid is None else f"a {cols}x{rows} grid"
-        click.echo(f"{what} of {image.shape[0]}x{image.shape[1]} written to {output}", err=True)
+        say(f"{what} of {image.shape[0]}x{image.shape[1]} written to {output}")
 
 
 @cooc.command(short_help='Generate from edited co-occurrence: statistics painted where wanted')
@@ -378,4 +377,4 @@ def edit(model_file, sources, output, size, mask, boost, seed, windows, quiet):
         image = model.generate(cond, rng=seed, windows=windows)[: size[0], : size[1]]
         save_image(image, output)
     if output != "-":
-        click.echo(f"edited texture of {image.shape[0]}x{image.shape[1]} written to {output}", err=True)
+        say(f"edited texture of {image.shape[0]}x{image.shape[1]} written to {output}")

@@ -8,6 +8,7 @@ import json
 import click
 
 from .._formats import OUTPUT_HELP
+from .lines import say
 from .common import (Progress, check_output, check_outputs, check_stdout, fail, load_exemplar, stop_message,
                      user_errors, warn_written_with_8, examples)
 from .options import QUIET_OPTION, Size, depth_option, scale_option
@@ -124,7 +125,7 @@ def evaluate(exemplar, results, as_json, as_csv, names, no_diversity, repetition
                  "running the same command again scores them all again", code)
         out.end(div)
     for name, why in out.skipped.items():
-        click.echo(f"Note: {name} skipped: {why}", err=True)
+        say(f"Note: {name} skipped: {why}")
 
 
 class ScoreWriter:
@@ -150,7 +151,8 @@ class ScoreWriter:
             self.skipped = scores.skipped
             self.sides = [max(14, len(c) + 2) for c in self.cols]  # a long name (copied_textured) keeps a gap
             if self.fmt == "table":
-                click.echo(f"{'result':<{self.width}}" + "".join(f"{c:>{n}}" for c, n in zip(self.cols, self.sides)))
+                say(f"{'result':<{self.width}}" + "".join(f"{c:>{n}}" for c, n in zip(self.cols, self.sides)),
+                    err=False)
             elif self.fmt == "csv":
                 self._csv(["exemplar", "result", *self.cols, *(["diversity"] if self.with_diversity else [])])
         if self.fmt == "json":
@@ -159,7 +161,8 @@ class ScoreWriter:
             self._csv([self.exemplar, path, *(_csv_number(scores[c]) for c in self.cols),
                        *([""] if self.with_diversity else [])])
         else:
-            click.echo(f"{path:<{self.width}}" + "".join(f"{scores[c]:>{n}.4g}" for c, n in zip(self.cols, self.sides)))
+            say(f"{path:<{self.width}}" + "".join(f"{scores[c]:>{n}.4g}" for c, n in zip(self.cols, self.sides)),
+                err=False)
 
     @staticmethod
     def _csv(cells):
@@ -179,7 +182,7 @@ class ScoreWriter:
         elif self.fmt == "csv":
             self._csv([self.exemplar, "", *([""] * len(self.cols)), _csv_number(div)])
         else:
-            click.echo(f"diversity of the {len(self.results)} results: {div:.4g}")
+            say(f"diversity of the {len(self.results)} results: {div:.4g}", err=False)
 
 
 def _finite(scores):
@@ -286,11 +289,11 @@ def baseline(name, exemplar, output, size, seed, iterations, model_file, assembl
                 steps = SMALL["n_steps"] if iterations is None else iterations
                 minutes = 15.0 * steps / SMALL["n_steps"]
                 when = f"about {minutes:.0f} minutes" if minutes >= 1.5 else "about a minute or less"
-                click.echo(f"Note: no --model: training the co-occurrence cGAN first ({steps} "
-                           f"step{'s' if steps != 1 else ''}, {when} on a 2-core CPU); to reuse it, train once with "
-                           "'tghop cooc train' and pass --model", err=True)
+                say(f"Note: no --model: training the co-occurrence cGAN first ({steps} "
+                    f"step{'s' if steps != 1 else ''}, {when} on a 2-core CPU); to reuse it, train once with "
+                    "'tghop cooc train' and pass --model")
         image = BASELINES[name](ex, size, rng=seed, progress=progress, **kwargs)
         progress.close()
         save_image(image, output, depth=depth or 8, progress=progress)
     if output != "-":
-        click.echo(f"{name} result written to {output}", err=True)
+        say(f"{name} result written to {output}")

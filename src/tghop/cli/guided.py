@@ -9,6 +9,7 @@ import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
+from .lines import say
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, count_outputs,
                      draw_seed, tell_steps, read_image, tell_seed, user_errors, warn_written_with_8, write_materials,
                      examples, stage_paths, save_with_stages, STAGES, MATERIAL_STAGES)
@@ -181,8 +182,7 @@ def _tell_colours(path, guide, labels, sources):
         return  # grey levels saved in colour (a JPEG's chroma noise)
     told = ", ".join(f"SOURCE {i} ({spec}) where it is #{r:02x}{g:02x}{b:02x}" for i, (spec, colour) in
                      enumerate(zip(sources, colours), start=1) if colour is not None for r, g, b in [colour])
-    click.echo(f"Note: --guide {path} paints {told} (its colours ranked dark to light by their mean, then R, G, "
-               "B)", err=True)
+    say(f"Note: --guide {path} paints {told} (its colours ranked dark to light by their mean, then R, G, B)")
 
 
 def synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model, exclude, downscale,
@@ -438,7 +438,7 @@ def morph(source_a, source_b, output, size, grid, seed, stations, stages, depth,
         model_a, model_b = _fitted(read_a, None, progress, f"A {source_a}"), _fitted(read_b, None, progress,
                                                                                      f"B {source_b}")
         if stations is not None:  # (the library's FutureWarning is not among the warnings shown)
-            click.echo(f"Warning: --{STATIONS_GONE}", err=True)
+            say(f"Warning: --{STATIONS_GONE}")
         if hasattr(model_a, "names_"):  # two materials (0.59): every map morphed alike, OUT and OUT_<suffix>
             steps = _morph_materials(model_a, model_b, output, size, grid, seed, depth, progress,
                                      [("A", source_a), ("B", source_b)], stages)
@@ -458,7 +458,7 @@ def morph(source_a, source_b, output, size, grid, seed, stations, stages, depth,
         else:
             save_image(image, output, depth=depth or 8, progress=progress)
     if output != "-":
-        click.echo(f"{grid} strip{'s' if grid > 1 else ''} of {size[0]}x{size[1]} written to {output}", err=True)
+        say(f"{grid} strip{'s' if grid > 1 else ''} of {size[0]}x{size[1]} written to {output}")
     tell_steps([staged[name] for name in steps], 1)
     tell_seed(seed, drawn, "the same strip" if grid == 1 else "the same strips")
 

@@ -9,6 +9,7 @@ import click
 
 from .._errors import HINT_DOWNSCALE_YOURSELF, TGHopError
 from .._formats import OUTPUT_HELP
+from .lines import say
 from .common import (Progress, check_output, check_outputs, is_builtin, is_model_file, load_exemplar, load_mask,
                      map_names, count_outputs, quiet_tifffile, refuse_albedo_as_map, refuse_colour_map_out_of_place,
                      read_image, draw_seed, tell_steps, tell_seed, user_errors, warn_lost_depth, examples, stage_paths,
@@ -119,8 +120,8 @@ def inpaint(image, mask, map_paths, output, with_maps, source, scale, seed, coun
                                 staged=staged)
     if output != "-":
         filled = int(hole.sum())
-        click.echo(f"{filled:,} pixel{'s' if filled != 1 else ''} filled{_times(count)}, written to "
-                   f"{_where(outputs)}", err=True)
+        say(f"{filled:,} pixel{'s' if filled != 1 else ''} filled{_times(count)}, written to "
+            f"{_where(outputs)}")
         tell_steps(steps, count)  # after the output, as for materials (0.62)
     tell_seed(seed, drawn, _same(count))
 
@@ -176,8 +177,8 @@ def extend(image, map_paths, output, with_maps, size, anchor, source, scale, see
         steps = _fill_and_write(model, canvas, hole, alpha, rng, tile, progress, image, outputs, depth,
                                 order="raster", staged=staged)
     if output != "-":
-        click.echo(f"{picture.shape[0]}x{picture.shape[1]} extended to {size[0]}x{size[1]}{_times(count)}, written "
-                   f"to {_where(outputs)}", err=True)
+        say(f"{picture.shape[0]}x{picture.shape[1]} extended to {size[0]}x{size[1]}{_times(count)}, written "
+            f"to {_where(outputs)}")
         tell_steps(steps, count)
     tell_seed(seed, drawn, _same(count))
 
@@ -541,8 +542,7 @@ def _fill_material(image, map_paths, outputs, source, scale, seed, tile, depth, 
     what = (f"{int(hole.sum()):,} pixels filled" if grow is None
             else f"{picture.shape[0]}x{picture.shape[1]} extended to {grow[0][0]}x{grow[0][1]}")
     more = f" (and {len(plans) - 1} more set{'s' if len(plans) > 2 else ''})" if len(plans) > 1 else ""
-    click.echo(f"{what} in {len(plans[0])} maps, written to {', '.join(out for _, out, _ in plans[0])}{more}",
-               err=True)
+    say(f"{what} in {len(plans[0])} maps, written to {', '.join(out for _, out, _ in plans[0])}{more}")
     if stages:
         tell_steps([steps[0][1] for steps in staged[0].values() if Path(steps[0][1]).exists()], len(plans), maps=True)
 

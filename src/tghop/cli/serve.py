@@ -15,6 +15,7 @@ from pathlib import Path
 import click
 
 from .._errors import TGHopError
+from .lines import say
 from .common import check_stdout, examples, quiet_tifffile, user_errors
 from .group import after_a_stop
 
@@ -198,9 +199,9 @@ def serve(host, port, open_browser, cache, cache_size, max_fits, max_decodes, de
             shown = f"[{host}]" if ":" in host else host
             url = f"http://{'127.0.0.1' if host in ('0.0.0.0', '::', '') else shown}:{bound}/"
             if host not in LOOPBACK:  # the addresses whose clients LocalOnly lets in
-                click.echo(f"Warning: listening on {host}: other machines on the network can use this server "
-                           "(it has no login); use --host 127.0.0.1 to keep it to this machine", err=True)
-            click.echo(f"tghop serving on {url} (models in {cache_dir}; Ctrl-C stops it)")
+                say(f"Warning: listening on {host}: other machines on the network can use this server "
+                    "(it has no login); use --host 127.0.0.1 to keep it to this machine")
+            say(f"tghop serving on {url} (models in {cache_dir}; Ctrl-C stops it)", err=False)
             sys.stdout.flush()
             if open_browser:
                 import webbrowser
@@ -217,4 +218,4 @@ def serve(host, port, open_browser, cache, cache_size, max_fits, max_decodes, de
                 server.run(sockets=[sock])
     finally:
         sock.close()
-    click.echo("tghop server stopped", err=True)
+    say("tghop server stopped")

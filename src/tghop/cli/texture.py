@@ -13,6 +13,7 @@ import click
 from .._errors import TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
 from ..fit_options import build_model
+from .lines import say
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
                      is_builtin, is_model_file, load_exemplar, load_mask, map_names, count_outputs, quiet_tifffile,
                      refuse_albedo_as_map, refuse_colour_map_out_of_place, read_image, summary,
@@ -147,9 +148,9 @@ def fit(exemplar, map_paths, output, with_maps, exclude, downscale, quiet, **opt
         progress.took("saving", started)
         progress.close()
     if with_maps:
-        click.echo(f"material: {material_summary(material)}", err=True)
-    click.echo(summary(model), err=True)
-    click.echo(f"{'material' if with_maps else 'model'} written to {output}", err=True)
+        say(f"material: {material_summary(material)}")
+    say(*summary(model).split("\n"))
+    say(f"{'material' if with_maps else 'model'} written to {output}")
 
 
 def material_summary(material) -> str:
@@ -213,9 +214,9 @@ def patches(model_file, n, output, seed, stages, quiet):
         else:
             save_image(patch_grid(samples), output)
     if output != "-":  # the output first, then its views, as every command says its steps (0.63; 0.62: views first)
-        click.echo(f"{n} patch{'es' if n != 1 else ''} written to {output}", err=True)
+        say(f"{n} patch{'es' if n != 1 else ''} written to {output}")
     if stage_path:
-        click.echo(f"stage views written beside it: {Path(stage_path).name}", err=True)
+        say(f"stage views written beside it: {Path(stage_path).name}")
 
 
 @click.command(short_help="Map which of a model's clusters each part of an exemplar falls in", epilog=examples(
@@ -252,7 +253,7 @@ def clusters(model_file, exemplar, output, stride, quiet):
         left = np.repeat(image, 3, axis=2) if image.shape[2] == 1 else image
         save_image(np.concatenate([left, painted], axis=1), output)
         used, total = len(np.unique(labels)), len(model.ichm_.means_)
-    click.echo(f"{used} cluster{'s' if used != 1 else ''} used of {total}; map written to {output}", err=True)
+    say(f"{used} cluster{'s' if used != 1 else ''} used of {total}; map written to {output}")
 
 
 @click.command(short_help='Make texture images from an image, builtin:NAME or saved model(s)', epilog=examples(
@@ -352,9 +353,9 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
                 return
     if output != "-":
         where = outputs[0] if count == 1 else f"{outputs[0]} ... {outputs[-1]}"
-        click.echo(f"{count} image{'s' if count > 1 else ''} of {size[0]}x{size[1]} written to {where}", err=True)
+        say(f"{count} image{'s' if count > 1 else ''} of {size[0]}x{size[1]} written to {where}")
         if save_model is not None and not from_model:
-            click.echo(f"model written to {save_model}", err=True)
+            say(f"model written to {save_model}")
         tell_steps(steps, count)  # after the output, as for materials (0.62)
     tell_seed(seed, drawn, "the same image" if count == 1 else "the same images")
 
@@ -489,30 +490,30 @@ def info(model_file, as_json):
         click.echo(json.dumps(out, indent=2, default=str, allow_nan=False))
         return
     h, w, c = model.exemplar_shape_
-    click.echo(f"tghop model {model_file}")
+    say(f"tghop model {model_file}", err=False)
     if material is not model:
-        click.echo(f"material: {material_summary(material)}")
+        say(f"material: {material_summary(material)}", err=False)
         for line in _mask_levels(material):
-            click.echo(line)
+            say(line, err=False)
     scaled = "" if model.scale == 1 else f" (resampled by --scale {model.scale:g})"
     bits = getattr(model, "exemplar_depth_", None)
     bits = "" if bits is None else ", float" if bits == 32 else f", {bits}-bit"
-    click.echo(f"exemplar: {h}x{w}{scaled}, {c} channel{'s' if c > 1 else ''}{bits}; {model.n_patches_:,} training "
-               f"patches of {model.patch_size}x{model.patch_size} at stride {model.stride}")
+    say(f"exemplar: {h}x{w}{scaled}, {c} channel{'s' if c > 1 else ''}{bits}; {model.n_patches_:,} training "
+        f"patches of {model.patch_size}x{model.patch_size} at stride {model.stride}", err=False)
     levels = getattr(model, "exemplar_levels_", None)
     if levels is not None:  # a two-level exemplar (line art, a 1-bit file): its images hold these two only
         low, high = (f"{v[0]:.4g}" if len(v) == 1 else "(" + ", ".join(f"{x:.4g}" for x in v) + ")" for v in levels)
-        click.echo(f"exemplar levels: two only, {low} and {high} (its images are snapped to them)")
+        say(f"exemplar levels: two only, {low} and {high} (its images are snapped to them)", err=False)
     seed = info_dict(model, params)["fit_seed"]
-    click.echo(f"fit seed: {seed}" if seed is not None else
-               "fit seed: not recorded (fitted with a Generator, or by tghop 0.32 or older)")
-    click.echo(summary(model, params))
-    click.echo("\nparameters (paper Table 4):")
+    say(f"fit seed: {seed}" if seed is not None else
+        "fit seed: not recorded (fitted with a Generator, or by tghop 0.32 or older)", err=False)
+    say(*summary(model, params).split("\n"), err=False)
+    say("", "parameters (paper Table 4):", err=False)
     rows = [("module", "formula", "paper formula", "stored")] + [
         (name, row["formula"], f"{row['paper']:,}", f"{row['stored']:,}") for name, row in params.items()]
     widths = [max(len(r[i]) for r in rows) for i in range(4)]
     for r in rows:
-        click.echo(f"  {r[0]:<{widths[0]}}  {r[1]:<{widths[1]}}  {r[2]:>{widths[2]}}  {r[3]:>{widths[3]}}")
+        say(f"  {r[0]:<{widths[0]}}  {r[1]:<{widths[1]}}  {r[2]:>{widths[2]}}  {r[3]:>{widths[3]}}", err=False)
 
 
 def _mask_levels(material, as_json=False):
