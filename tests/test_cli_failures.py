@@ -677,7 +677,7 @@ def test_a_full_disk_behind_stdout_is_one_line(folder, args):
 
 def test_help_shows_each_default_as_its_kind():
     # A float of 1.0 is not "on", nor 0.0 "off" (they equal True and False as dictionary keys).
-    flat = " ".join(CliRunner().invoke(main, ["fit", "--help"]).stdout.split())
+    flat = " ".join(CliRunner().invoke(main, ["fit", "--help-all"]).stdout.split())
     norm = flat.split("--norm-match FLOAT", 1)[1].split(" --coupling", 1)[0]
     assert norm.endswith("[default: 1.0; --paper: 0.0; 0<=x<=1]"), norm
     coupling = flat.split("--coupling FLOAT", 1)[1].split(" --min-cluster-size", 1)[0]
@@ -687,10 +687,10 @@ def test_help_shows_each_default_as_its_kind():
 
 def test_help_shows_each_paper_value_in_the_command_lines_words():
     # `--paper: False` and `--paper: None` (Python's words) beside `[default: on` for a flag and `--layout none`.
-    flat = " ".join(CliRunner().invoke(main, ["synth", "--help"]).stdout.split())
-    colours = flat.split("--match-colours / --no-match-colours", 1)[1].split(" --layout-weight", 1)[0]
+    flat = " ".join(CliRunner().invoke(main, ["synth", "--help-all"]).stdout.split())
+    colours = flat.split("--match-colours / --no-match-colours", 1)[1].split(" --refine", 1)[0]
     assert colours.endswith("[default: on; --paper: off]"), colours
-    assert "[default: 3; --paper: none]" in flat.split("--layout INT", 1)[1].split(" --scale", 1)[0]
+    assert "[default: 3; --paper: none]" in flat.split("--layout INT", 1)[1].split(" --fit-seed", 1)[0]
     assert "[default: 1024; --paper: none]" in flat.split("--region INT", 1)[1].split(" --own-shares", 1)[0]
     assert "--paper: None" not in flat and "--paper: False" not in flat and "--paper: True" not in flat
 
@@ -698,10 +698,11 @@ def test_help_shows_each_paper_value_in_the_command_lines_words():
 def test_help_gives_the_word_an_option_takes_for_none():
     # The settings table's help says "(None: patch_size / 6, ...)", Python's word; the command line takes
     # none (or auto), so --help says that.
-    for command in ("synth", "fit", "inpaint", "batch"):
-        flat = " ".join(CliRunner().invoke(main, [command, "--help"]).stdout.split())
+    for command in ("synth", "fit", "inpaint", "batch"):  # their options' own help: --help-all's (0.64)
+        flat = " ".join(CliRunner().invoke(main, [command, "--help-all" if command != "inpaint" else "--help"]).stdout
+                        .split())
         assert "None:" not in flat, command
-    flat = " ".join(CliRunner().invoke(main, ["synth", "--help"]).stdout.split())
+    flat = " ".join(CliRunner().invoke(main, ["synth", "--help-all"]).stdout.split())
     assert "Quilting overlap in pixels (none: patch_size / 6, rounded" in flat
     assert "(none: the whole image at once" in flat
 
@@ -710,7 +711,7 @@ def test_help_gives_the_channel_options_defaults():
     # --k1, --k2 and --k3 said the paper's counts but not what tghop takes without them.
     from tghop.synthesis import default_channels
 
-    flat = " ".join(CliRunner().invoke(main, ["fit", "--help"]).stdout.split())
+    flat = " ".join(CliRunner().invoke(main, ["fit", "--help-all"]).stdout.split())
     for hop, (colour, grey, six) in enumerate(zip(default_channels(64, 3), default_channels(64, 1),
                                                   default_channels(64, 6))):
         text = flat.split(f"--k{hop + 1} ", 1)[1].split(" --", 1)[0]
@@ -732,7 +733,7 @@ def test_serve_and_batch_help_say_what_the_code_does():
     # --host named 127.0.0.1 (localhost) only, though ::1 is quiet too; --retries read "Tries again elsewhere".
     serve = " ".join(CliRunner().invoke(main, ["serve", "--help"]).stdout.split())
     assert "Any other than 127.0.0.1, localhost or ::1 lets other machines use the server" in serve, serve
-    batch = " ".join(CliRunner().invoke(main, ["batch", "--help"]).stdout.split())
+    batch = " ".join(CliRunner().invoke(main, ["batch", "--help-all"]).stdout.split())
     assert "Times a task whose worker died" in batch and "Tries again elsewhere" not in batch, batch
 
 
@@ -768,10 +769,10 @@ def test_a_model_without_colour_classes_warns_of_own_shares_and_info_says_so(fol
 
 def test_help_states_the_range_of_fractions():
     # `--own-shares FLOAT` showed no range, though values outside [0, 1] are refused.
-    flat = " ".join(CliRunner().invoke(main, ["synth", "--help"]).stdout.split())
+    flat = " ".join(CliRunner().invoke(main, ["synth", "--help-all"]).stdout.split())
     shares = flat.split("--own-shares FLOAT", 1)[1].split(" --layout-refine", 1)[0]
     assert shares.endswith("[default: 1.0; --paper: 0.0; 0<=x<=1]"), shares
-    detail = flat.split("--detail FLOAT", 1)[1].split(" --match-colours", 1)[0]
+    detail = flat.split("--detail FLOAT", 1)[1].split(" --flat-share", 1)[0]
     assert detail.endswith("; 0<=x<1]"), detail  # open at 1
     assert "[default: 0.99; --paper: 0.95; 0<x<=1]" in flat  # --cluster-energy, open at 0
     assert "<=x<=1e+06" not in flat and "<=x<=1000000" not in flat  # caps, not ranges: not shown
@@ -780,7 +781,7 @@ def test_help_states_the_range_of_fractions():
 @pytest.mark.parametrize("command", ["fit", "synth", "batch"])
 def test_help_names_the_values_of_a_choice(command):
     # `--gamma-mode CHOICE` never said which values it takes (only its error did).
-    flat = " ".join(CliRunner().invoke(main, [command, "--help"]).stdout.split())
+    flat = " ".join(CliRunner().invoke(main, [command, "--help-all"]).stdout.split())
     assert "--gamma-mode [absolute|relative] " in flat and "CHOICE" not in flat
 
 

@@ -128,3 +128,27 @@ def test_the_examples_whose_inputs_are_built_in_run_as_written(tmp_path, monkeyp
     assert {command for command in ORDER if any(line.split()[1] == command for line in ran)} >= {
         "fit", "synth", "info", "patches", "clusters", "morph", "baseline"}, ran
     assert copied, "no fit was the same as one before: _fits_once saves nothing (drop it, or fit alike again)"
+
+
+@pytest.mark.parametrize("command, lines_before", [("synth", 356), ("fit", 170), ("batch", 333)])
+def test_help_leads_with_the_common_options_names_every_other_and_help_all_says_each(command, lines_before):
+    # 0.63's synth --help was 356 lines, -o, --size and --seed among 60 options in the pipeline's order (0.64)
+    import click
+    from click.testing import CliRunner
+
+    from tghop.cli import main
+    from tghop.cli.help_sections import COMMON
+
+    short = CliRunner().invoke(main, [command, "--help"]).stdout
+    every = CliRunner().invoke(main, [command, "--help-all"]).stdout
+    assert len(short.splitlines()) < lines_before / 3 < len(every.splitlines()) / 2, short
+    first = short.split("\nOptions:\n", 1)[1].split("\n\n", 1)[0]  # the first section: the common options
+    options = [p for p in main.get_command(None, command).params if isinstance(p, click.Option) and not p.hidden]
+    by_name = {p.name: p for p in options}
+    assert [by_name[n].opts[-1] for n in COMMON[command]] == [
+        w for w in re.findall(r"^  (?:-\w, )?(--[\w-]+)", first, re.M) if w not in ("--help-all", "--help")]
+    for p in options:  # each named in --help, its help in --help-all
+        assert all(re.search(rf"(?<![\w-]){name}(?![\w-])", short) for name in p.opts), p.opts
+        record = "".join(p.get_help_record(click.Context(main.get_command(None, command)))[1].split())
+        assert record in "".join(every.split()), record  # spaces left out: click wraps at hyphens
+    assert f"tghop {command} --help-all" in short.replace("main ", "tghop ")  # said where each one's help is

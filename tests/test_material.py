@@ -522,7 +522,7 @@ def test_cli_stages_of_a_material_writes_each_steps_maps_the_last_its_output(mat
 def test_synth_help_names_every_step_a_material_writes():
     # It named OUTPUT_quilt first and _maps last: a material with a layout writes OUTPUT_guide first, and each
     # material writes OUTPUT_colour (after _patch-refine), which it did not name.
-    text = " ".join(CliRunner().invoke(main, ["synth", "--help"]).output.split())
+    text = " ".join(CliRunner().invoke(main, ["synth", "--help-all"]).output.split())
     said = text[text.index("A material's (0.61)"):text.index("Several SOURCEs or --guide (0.61)")]
     assert "OUTPUT_guide, OUTPUT_guide_<map>, where it has a layout" in said and "_colour after _patch-refine" in said
 

@@ -7,7 +7,8 @@ synth, patches, clusters, info; :mod:`~tghop.cli.guided`: synth with several SOU
 baseline; :mod:`~tghop.cli.cooc`: the co-occurrence cGAN; :mod:`~tghop.cli.batch`: batch;
 :mod:`~tghop.cli.serve`: serve), and below them the shared helpers
 (:mod:`~tghop.cli.options`, :mod:`~tghop.cli.common`, :mod:`~tghop.cli.lines`: the lines a command prints, as a
-terminal shows them). The ``tghop`` command itself
+terminal shows them; :mod:`~tghop.cli.help_sections`: the ``--help`` of the commands with many options). The ``tghop``
+command itself
 starts in :func:`tghop.__main__.run`.
 """
 

@@ -13,6 +13,7 @@ import click
 
 from .._errors import TGHopError
 from ..fit_options import fit_params
+from .help_sections import COMMON, SectionedCommand
 from .lines import say
 from .common import Progress, examples, fail, quiet_tifffile, stop_message, user_errors
 from .options import MAX_COUNT, QUIET_OPTION, Size, generation_options, generation_params, model_options
@@ -91,7 +92,8 @@ def stopped_line(plan, last, failed) -> str:
     "tghop batch textures/ -o results --count 2 --size 512 --seed 1",
     "# a manifest (CSV with a path column), in this process, without Dask",
     "tghop batch list.csv -o results --workers 1",
-    "# then open results/index.html: every exemplar's thumbnail and images"))
+    "# then open results/index.html: every exemplar's thumbnail and images"), cls=SectionedCommand,
+    common=COMMON["batch"])
 @click.argument("source")
 @click.option("-o", "--outdir", required=True,
               help="Folder for the results: OUTDIR/NAME/ per exemplar, the ledger batch.jsonl, the contact "

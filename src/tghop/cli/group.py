@@ -115,7 +115,7 @@ def _import_for(group, args):
     import importlib
 
     words = [a for a in args if isinstance(a, str)]
-    if any(a in ("-h", "--help", "--version") for a in words):
+    if any(a in ("-h", "--help", "--help-all", "--version") for a in words):
         return
     command = next((a for a in words if not a.startswith("-")), None)
     if command is not None:
@@ -349,5 +349,6 @@ def main():
     To make many images from one exemplar, learn its model once and reuse it:
       tghop fit my_texture.jpg -o my_texture.npz
       tghop synth my_texture.npz -o more.png --count 8
-    Each command's options and examples: tghop COMMAND --help.
+    Each command's options and examples: tghop COMMAND --help (synth, fit and batch
+    name their rarer options there: --help-all gives each one's help).
     """

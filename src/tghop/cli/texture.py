@@ -13,6 +13,7 @@ import click
 from .._errors import TGHopError
 from .._formats import OUTPUT_HELP, model_file_kind
 from ..fit_options import build_model
+from .help_sections import COMMON, SectionedCommand
 from .lines import say
 from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_output, check_outputs, check_stdout,
                      is_builtin, is_model_file, load_exemplar, load_mask, map_names, count_outputs, quiet_tifffile,
@@ -107,7 +108,7 @@ def _resolution_word(path):
     "# your own image with the paper's settings (Table 4)",
     "tghop fit texture.jpg -o paper.npz --paper",
     "# a whole material: the colour map first, then its maps, kept aligned",
-    "tghop fit albedo.png --maps normal.png roughness.png -o mat.npz"))
+    "tghop fit albedo.png --maps normal.png roughness.png -o mat.npz"), cls=SectionedCommand, common=COMMON["fit"])
 @click.argument("exemplar")
 @click.argument("map_paths", metavar="[MAP]...", nargs=-1)
 @click.option("-o", "--output", required=True, help="Model file to write (NAME.npz).")
@@ -264,7 +265,7 @@ def clusters(model_file, exemplar, output, stride, quiet):
     "# your own image: a seamless tile, its model kept to make more",
     "tghop synth texture.jpg -o tile.png --tile --save-model texture.npz",
     "# two textures painted by map.png: one grey level each, the darkest first",
-    "tghop synth bricks.npz texture.npz --guide map.png -o painted.png"))
+    "tghop synth bricks.npz texture.npz --guide map.png -o painted.png"), cls=SectionedCommand, common=COMMON["synth"])
 @click.argument("sources", nargs=-1, required=True, metavar="SOURCE...")
 @click.option("-o", "--output", required=True,
               help=f"{OUTPUT_HELP}); with --count > 1 numbered name_1.png, ...; - writes PNG "
