@@ -495,6 +495,18 @@ def test_every_line_naming_a_file_that_is_not_utf8_shows_it_as_the_terminal_does
     assert "results in caf\ufffd_d_out, contact sheet caf\ufffd_d_out/index.html" in err, err
 
 
+def test_a_folder_as_model_and_an_image_as_batch_source_are_told_what_to_give(folder, tmp_path):
+    # 0.63: "adir is a folder, not a model file" and ".../bricks.png: SOURCE is a folder of images or a manifest
+    # (.csv or .jsonl)", neither naming what to give (0.64, a new user's walk through the errors)
+    (tmp_path / "adir").mkdir()
+    code, _, err, exc = invoke("info", "adir", cwd=tmp_path)
+    assert_one_line(code, err, "Error: adir is a folder, not a model file; give a model file in it (NAME.npz)",
+                    exception=exc)
+    code, _, err, exc = invoke("batch", folder / "bricks.png", "-o", "out", "--workers", "1", cwd=tmp_path)
+    assert_one_line(code, err, "bricks.png: not a folder or a manifest; give a folder of images or a .csv or .jsonl "
+                    "file", exception=exc)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["adir"]
+
 def test_an_image_given_as_a_model_gets_a_command_that_can_be_pasted(folder):
     # The fit command it suggested left a name with spaces unquoted: pasted, it fitted "my".
     import shlex
@@ -928,7 +940,7 @@ def test_a_command_imports_only_its_own_module_of_the_command_line(folder):
         "import tghop.cli\n"
         "def loaded():\n"
         "    return sorted(m.split('.')[2] for m in sys.modules if m.startswith('tghop.cli.')\n"
-        "                  and m.split('.')[2] not in ('common', 'group', 'options'))\n"
+        "                  and m.split('.')[2] not in ('common', 'group', 'options', 'lines', 'help_sections'))\n"
         "print('AT_IMPORT', loaded(), file=sys.stderr)\n"
         "atexit.register(lambda: print('AT_EXIT', loaded(), file=sys.stderr))\n"
         "sys.argv[0] = 'tghop'\n"

@@ -282,7 +282,7 @@ def find_work(source, outdir=None, max_depth=None):
             raise TGHopError(f"{source}: max depth (--max-depth) is for a folder SOURCE; a manifest lists its files: "
                              "drop it (the manifest's rows are the exemplars)")
         if source.suffix.lower() not in (".csv", ".jsonl", ".json", ".ndjson"):
-            raise TGHopError(f"{source}: SOURCE is a folder of images or a manifest (.csv or .jsonl)")
+            raise TGHopError(f"{source}: not a folder or a manifest; give a folder of images or a .csv or .jsonl file")
         items = read_manifest(source)
     else:
         raise TGHopError(f"{source}: no such folder or manifest; check the path")

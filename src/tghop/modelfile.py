@@ -212,7 +212,7 @@ def _read(path):
         if not path.exists():
             raise ModelFileError(f"{path}: no such model file; check the path, or fit a model first")
         if path.is_dir():
-            raise ModelFileError(f"{path} is a folder, not a model file")
+            raise ModelFileError(f"{path} is a folder, not a model file; give a model file in it (NAME.npz)")
     try:
         return (*_read_archive(path, label), label)
     finally:
