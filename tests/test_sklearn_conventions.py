@@ -639,6 +639,19 @@ def test_a_constructor_given_an_unknown_keyword_names_the_valid_ones_and_a_model
     assert TGHop(gamma=0.01).gamma == 0.01 and Material(rng=1).rng == 1  # the constructor's own keywords as ever
 
 
+@pytest.mark.parametrize("name, said", [
+    ("pool", "the command line's --pool is n_patches here"),
+    ("k1", "the command line's --k1 is a fit setting: TGHop(n_channels=(K1, K2[, K3])), fitted again"),
+    ("clusters", "the command line's --clusters is a fit setting: TGHop(n_clusters=...), fitted again"),
+    ("gamma", "gamma is a fit setting: TGHop(gamma=...), fitted again"),
+])
+def test_synthesize_given_a_command_line_name_or_a_fit_setting_says_its_place(small_model, name, said):
+    # 0.63: Python's bare "TGHop.synthesize() got an unexpected keyword argument 'pool'" (0.64)
+    with pytest.raises(TypeError) as error:
+        small_model.synthesize((40, 40), **{name: 1})
+    assert str(error.value) == f"TGHop.synthesize() got an unexpected keyword argument {name!r}; {said}"
+
+
 @pytest.mark.parametrize("make, use, said", [
     (TGHop, lambda m: m.synthesize((64, 64)), "call 'fit' with an exemplar first (or load a fitted model with "
                                               "tghop.modelfile.load_model)"),

@@ -28,6 +28,7 @@ __all__ = [
     "check_is_fitted",
     "fitted_settings",
     "check_keywords",
+    "named_keywords",
     "check_rng",
     "fit_part",
 ]
@@ -331,6 +332,25 @@ def _same_setting(a, b) -> bool:
 
 
 RngLike = Union[None, int, np.integer, np.random.Generator]
+
+
+def named_keywords(method):
+    """A method that refuses a keyword it does not take with the estimator's hint for that name
+    (``_unknown_keyword_hint``, else :meth:`BaseEstimator._unknown_param_hint`: a command line's name, a setting
+    of another call), in Python's
+    words (a TypeError, 0.64: ``model.synthesize(size, pool=30)`` was Python's bare "unexpected keyword
+    argument 'pool'"). Its signature is the method's own (``inspect.signature`` follows ``__wrapped__``)."""
+    takes = set(inspect.signature(method).parameters)
+
+    @functools.wraps(method)
+    def checked(self, *args, **kwargs):
+        unknown = next((name for name in kwargs if name not in takes), None)
+        if unknown is not None:
+            raise TypeError(f"{type(self).__name__}.{method.__name__}() got an unexpected keyword argument "
+                            f"{unknown!r}{getattr(self, '_unknown_keyword_hint', self._unknown_param_hint)(unknown)}")
+        return method(self, *args, **kwargs)
+
+    return checked
 
 
 def check_keywords(options, function, *, where: str, exclude=()) -> None:

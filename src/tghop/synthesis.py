@@ -38,7 +38,7 @@ import numpy as np
 from . import generation, settings
 from ._errors import TGHopError, check_progress
 from ._estimator import (NOT_FITTED_MODEL_HINT, BaseEstimator, ImageInputMixin, check_is_fitted, check_keywords,
-                         check_rng, fit_part, fitted_settings)
+                         check_rng, fit_part, fitted_settings, named_keywords)
 from ._images import check_image, grey_as_rgb
 from ._progress import report
 from ._resources import one_blas_thread
@@ -172,6 +172,21 @@ class TGHop(ImageInputMixin, PatchCodec, BaseEstimator):
                             f"model.synthesize(size, {setting.name}=...)")
                 return f"; the command line's {option} is {setting.name} here"
         return super()._unknown_param_hint(name)
+
+    def _unknown_keyword_hint(self, name):
+        """A name given to :meth:`synthesize` that it does not take (0.64): a generation setting's command-line name,
+        its keyword; a fit setting, the constructor's, and a fit again."""
+        option = "--" + name.replace("_", "-")
+        if option in ("--k1", "--k2", "--k3", "--fit-seed"):
+            said = "rng=..." if option == "--fit-seed" else "n_channels=(K1, K2[, K3])"
+            return f"; the command line's {option} is a fit setting: TGHop({said}), fitted again"
+        for setting in settings.SETTINGS:
+            if setting.name == name or option in setting.option_names:
+                if setting.when == "generate":
+                    return f"; the command line's {option} is {setting.name} here"
+                said = name if setting.name == name else f"the command line's {option}"
+                return f"; {said} is a fit setting: TGHop({setting.name}=...), fitted again"
+        return ""
 
     # ---------------------------------------------------------------- fitting
     def check_settings(self):
@@ -585,6 +600,7 @@ class TGHop(ImageInputMixin, PatchCodec, BaseEstimator):
                       n_classes=getattr(getattr(self, "classes_", None), "n_classes", 0))
 
     @one_blas_thread()  # the same image with any number of threads or concurrent callers
+    @named_keywords
     def synthesize(self, size, *, rng=None, n_patches=DEFAULT_POOL, tile=False, overlap=None,
                    tolerance=0.1, detail=0.8, flat_share=0.25, match_colours=True, layout_weight=3.0, refine=5,
                    layout_refine=3, layout_patch_refine=None, patch_refine=None, patch_stride=2, reuse=1.0,
