@@ -16,7 +16,10 @@ the band's pixels, the graph-cut textures of Kwatra et al. (2003):
   along a row or a column the cheapest way across a curved outline;
 * showing the other region's layer costs :data:`STRAY_COST` times how far the pixel is into
   its own region (the difference of the two regions' weights, 0 on the painted edge, 1 at the
-  band's border), so the join stays near the paint where the layers are alike everywhere.
+  band's border; since 0.64 at least its distance from the other regions over the band's reach,
+  the same on a straight edge: round a convex corner the weights' difference fell to 0 up to
+  7 px in, and the join cut the other region's inner corner across), so the join stays near the
+  paint where the layers are alike everywhere.
 
 A region narrower than the band keeps its middle: a band pixel further from the painted edge
 than half its region's thickness there shows its own layer whatever the cut (without it, a
@@ -202,7 +205,9 @@ def cut_regions(labels, weights, layers, boxes, *, tile=False, stray_cost=STRAY_
     band = in_band(weights) if band is None else band
     if k < 2 or not band.any():
         return labels.copy()
-    band = band & ~_cores(labels, band, tile)
+    depth = _depth(labels, band, tile)
+    reach = int(depth[band].max())
+    band = band & ~_cores(labels, band, tile, depth)
     if not band.any():
         return labels.copy()
     ys, xs = np.nonzero(band)
@@ -218,7 +223,12 @@ def cut_regions(labels, weights, layers, boxes, *, tile=False, stray_cost=STRAY_
     node = np.full((h, w), -1, dtype=np.int64)
     node[ys, xs] = np.arange(n)
     # Cost of each node's two choices: x = 0 shows ``lo``, x = 1 shows ``hi``.
-    stray = (stray_cost * np.clip(own_weight - other_weight, 0.0, 1.0)).astype(np.float64)
+    # How far into its own region: the weights' difference, or the pixel's distance from the other regions
+    # where that is more (0.64; round a region's convex corner its box is mostly the other region's, so the
+    # weights' difference fell to 0 up to 7 px into it and the join cut the other region's concave corner
+    # across for nothing). On a straight edge the two are the same, (2 d + 1) / (2 reach + 1).
+    far = (depth[ys, xs] - 0.5) / (reach + 0.5)
+    stray = stray_cost * np.maximum(np.clip(own_weight - other_weight, 0.0, 1.0), far)
     cost = np.zeros((2, n))
     cost[0] = np.where(own == hi, stray, 0.0)
     cost[1] = np.where(own == lo, stray, 0.0)
@@ -388,7 +398,7 @@ def _in_a_block(labels, ys, xs, tile, outside):
     return out
 
 
-def _cores(labels, band, tile):
+def _cores(labels, band, tile, depth=None):
     """The band's pixels that show their own region's layer: those further from the painted edge than
     half their region's thickness there. A pixel at distance ``d`` from the edge is one where no pixel
     of its region within ``r`` of it is ``2 d`` from the edge, ``r`` the power of two from ``2 d`` to
@@ -397,7 +407,7 @@ def _cores(labels, band, tile):
     edge none is."""
     from scipy.ndimage import maximum_filter
 
-    depth = _depth(labels, band, tile)
+    depth = _depth(labels, band, tile) if depth is None else depth  # capped in place, above twice the band's
     # Only whether a depth reaches twice a band pixel's counts: capped there, 16 bits are enough (and
     # the maximum filters, most of the time, read half the bytes).
     np.minimum(depth, min(2 * int(depth[band].max()) + 1, np.iinfo(np.uint16).max), out=depth)
