@@ -1047,3 +1047,45 @@ def test_a_guide_of_the_outputs_shape_is_scaled_to_its_size(models, tmp_path):
     assert_user_error(r, "--guide thin.png: SOURCE 2's region is gone once the map is scaled from 24x32 to --size "
                          "12x16", "paint it wider or give a larger --size", status=2)  # a usage error (of --size)
     assert not (tmp_path / "bad.png").exists()
+
+
+def test_a_remix_sizes_its_regions_by_the_textures_elements(models, monkeypatch):
+    """0.63 drew every remix's regions with 64 px blobs; since 0.64 7 times the coarser texture's element size
+    (its band statistics' energy-weighted wavelength), within 32-256 px, or ``blob``."""
+    from tghop.refine import BandStatistics
+
+    noise = np.random.default_rng(0).random((128, 128, 3))
+    coarse = np.stack([np.kron(np.random.default_rng(c).random((8, 8)), np.ones((16, 16))) for c in range(3)], axis=2)
+    sized = []
+    for image in (noise, coarse):  # the models' statistics as of a fine and a coarse exemplar
+        model = copy.copy(models[0])
+        model.bands_ = BandStatistics().fit(image)
+        sized.append(model)
+    fine, large = (guided.element_size(m) for m in sized)
+    assert fine < 5 < 10 < large, (fine, large)  # noise about 3 px; 16 px squares 11 px (without a layout model)
+    assert guided.remix_blob(sized) == guided.remix_blob(sized[::-1]) == min(256.0, 7 * large)  # the coarser's
+    assert guided.remix_blob(sized[:1]) == 32.0  # within the range
+    drawn = []
+
+    def record(size, n_models, *, rng=None, scale=64, tile=False):
+        drawn.append(scale)
+        raise RuntimeError("recorded")
+
+    monkeypatch.setattr(guided, "random_labels", record)
+    for blob, expected in ((None, guided.remix_blob(sized)), (100, 100)):
+        with pytest.raises(RuntimeError, match="recorded"):
+            tghop.synthesize_guided(sized, size=(64, 64), rng=1, blob=blob)
+        assert drawn.pop() == expected
+    guide = np.zeros((64, 64), np.uint8)
+    guide[:, 32:] = 255
+    with pytest.raises(TGHopError, match="a guide paints them: leave blob out"):
+        tghop.synthesize_guided(models, guide, rng=1, blob=50)
+    with pytest.raises(TGHopError, match="blob must be"):
+        tghop.synthesize_guided(models, size=(64, 64), rng=1, blob=0)
+
+
+def test_cli_blob_applies_to_a_remix_only(tmp_path):
+    for args in (["a.npz"], ["a.npz", "b.npz", "--guide", "map.png"]):
+        r = _run(["synth", *args, "-o", "o.png", "--blob", "50"], tmp_path)
+        assert r.returncode == 2 and "--blob sizes a remix's regions" in r.stderr.decode(), r.stderr.decode()
+        assert not (tmp_path / "o.png").exists()

@@ -18,7 +18,7 @@ How painted regions (and a remix) are made
    the guide's regions as one-hot maps blurred by a box of ``transition`` pixels
    (:func:`region_weights`). The remix is a guided synthesis whose map is random: a
    smooth random field cut into ``K`` classes of equal area (:func:`random_labels`, blobs
-   of about 150 px).
+   of about 2.3 :func:`remix_blob` across: 150 px at 0.63's 64 px for all, 0.64 by the textures' elements).
 2. **Layers.** Each model synthesises its own image (:meth:`tghop.TGHop.synthesize`, all
    its steps and settings) over the box where its weight is above 0, so every region is as
    good as a plain image of its model.
@@ -76,14 +76,20 @@ from .normals import convention_flips, flip_green
 from .quilting import block_count
 
 __all__ = ["synthesize_guided", "morph", "morph_labels", "guide_labels", "region_weights", "random_labels",
-           "DEFAULT_TRANSITION", "MAX_TRANSITION", "MORPH_BLOB", "MORPH_ISLAND", "REMIX_ISLAND"]
+           "element_size", "remix_blob", "DEFAULT_TRANSITION", "MAX_TRANSITION", "MORPH_BLOB", "MORPH_ISLAND",
+           "REMIX_ISLAND", "REMIX_BLOB", "REMIX_BLOB_RANGE"]
 
 #: Default width in pixels of the band around a painted edge where the join follows the textures.
 DEFAULT_TRANSITION = 32
 #: The widest band (the command line's ``--transition`` range): wider took memory for nothing.
 MAX_TRANSITION = 4096
-#: Length scale in pixels of the random regions of a remix.
+#: Length scale in pixels of the random regions of a remix, where no models say otherwise (0.63: every remix's).
 _BLOB = 64
+#: A remix's blobs (the Gaussian of its random field, :func:`random_labels`), in the coarser texture's element
+#: sizes (:func:`element_size`; 0.64): the built-in bricks and cells (8 and 9 px) keep about 0.63's 64 px.
+REMIX_BLOB = 7.0
+#: The smallest and largest blob :func:`remix_blob` gives, in pixels.
+REMIX_BLOB_RANGE = (32.0, 256.0)
 #: Length scale of a morph's regions (the Gaussian of its random field), in the models' patch sizes: blobs
 #: of about a patch, as fine as the textures' elements allow (at 2 patch sizes a few large regions, the
 #: ramp lost; the quilt's blocks as outlines, 32 px squares, were a staircase).
@@ -224,7 +230,7 @@ def _check_models(models, minimum=1, materials=False):
 
 
 @one_blas_thread()  # the same image with any number of threads or concurrent callers
-def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANSITION, rng=None,
+def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANSITION, blob=None, rng=None,
                       n_patches=settings.BY_NAME["n_patches"].default, tile=False, overlap=None, tolerance=0.1,
                       detail=0.8, flat_share=0.25, refine=5, match_colours=True, reuse=1.0, pool_per_block=1.5,
                       layout_weight=3.0, layout_refine=3, layout_patch_refine=None, patch_refine=None, patch_stride=2,
@@ -255,6 +261,10 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         Width in pixels of the band around each painted edge in which the join between two
         regions follows the content (:mod:`tghop.composite`); 0: the join is the painted
         edge itself. At most :data:`MAX_TRANSITION`.
+    blob : float, optional
+        A remix's region size in pixels (the Gaussian of its random field, :func:`random_labels`: regions
+        about 2.3 times as wide); None (0.64): :func:`remix_blob` of the models, 7 times the coarser texture's
+        :func:`element_size` within 32-256 px (0.63: 64 px for all). Only without a guide.
     rng : int or numpy.random.Generator, optional
         Same seed, same image (on the same machine).
     n_patches, tile, overlap, tolerance, detail, flat_share, refine, match_colours, reuse, pool_per_block
@@ -296,7 +306,11 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
         if size is None:
             raise TGHopError("a remix without a guide needs a size")
         size = check_size(size)
+        if blob is not None:
+            check_number(blob, "blob", positive=True, unit="pixels")
     else:
+        if blob is not None:
+            raise TGHopError("blob sizes a remix's random regions; a guide paints them: leave blob out")
         size = None if size is None else check_size(size)
         check_not_path(guide, "the guide")
         # RGBA or grey+alpha: the alpha dropped with fit's warnings, as a guide's file is read (0.59)
@@ -307,7 +321,7 @@ def synthesize_guided(models, guide=None, *, size=None, transition=DEFAULT_TRANS
     block_count(size, (models[0].model_ if isinstance(models[0], Material) else models[0]).patch_size,
                 overlap=overlap, tile=tile)
     if guide is None:
-        labels = random_labels(size, k, rng=rng, tile=tile)
+        labels = random_labels(size, k, rng=rng, tile=tile, scale=remix_blob(models) if blob is None else blob)
     flips = convention_flips(models) if isinstance(models[0], Material) else None  # warned of by input (0.59)
     models, labels = _one_region_per_model(models, labels)
     weights = region_weights(labels, len(models), transition, tile=tile)
@@ -637,6 +651,56 @@ def _as_dtype(image, dtype, scratch=False):
         image *= np.float32(255.0)
         return np.round(image, out=image).astype(np.uint8)
     return np.ascontiguousarray(image, dtype=dtype)
+
+
+def element_size(model) -> float:
+    """The size of a texture's elements in pixels, as its model's band statistics see it (0.64).
+
+    The energy of each Laplacian band of the exemplar (:attr:`tghop.TGHop.bands_`: the variance of its
+    stored quantiles, over orientations and colour axes; band ``k`` holds wavelengths of about ``3 * 2**k``
+    pixels), with the coarse layout model's coarser bands (its band ``k`` at ``factor`` times that, where it
+    has one), gives each wavelength a weight; the size is the weighted geometric mean of the wavelengths.
+    Fine grain (grass, denim) measures 6-8 px, spots and stones (leopard, beach gravel) about 22 px.
+    Textures whose energy is in fine detail on large elements (a brick wall's rough faces and mortar lines)
+    measure fine.
+
+    Parameters
+    ----------
+    model : tghop.TGHop or tghop.material.Material
+        Fitted (a material: its albedo's model).
+
+    Returns
+    -------
+    float
+        Pixels of the model's output (its working ``scale`` applied).
+    """
+    model = model.model_ if isinstance(model, Material) else model
+    check_is_fitted(model, "bands_")
+
+    def energies(bands):
+        q = np.asarray(bands.band_quantiles_, dtype=np.float64)
+        return q.var(axis=-1).sum(axis=(1, 2))
+
+    energy = list(energies(model.bands_))
+    wavelength = [3.0 * 2 ** k for k in range(len(energy))]
+    layout = getattr(model, "layout_", None)
+    if layout is not None and wavelength:
+        for k, e in enumerate(energies(layout.model_.bands_)):
+            if layout.factor * 3.0 * 2 ** k > 1.2 * wavelength[-1]:  # only where the fine bands end
+                energy.append(e)
+                wavelength.append(layout.factor * 3.0 * 2 ** k)
+    energy = np.asarray(energy)
+    if energy.sum() <= 0:  # a flat exemplar
+        return float(wavelength[0]) if wavelength else 3.0
+    return float(np.exp(np.sum(energy * np.log(wavelength)) / energy.sum()))
+
+
+def remix_blob(models) -> float:
+    """A remix's blob size in pixels for ``models`` (0.64): :data:`REMIX_BLOB` times the largest
+    :func:`element_size` among them, within :data:`REMIX_BLOB_RANGE` (0.63: 64 px whatever the textures:
+    a remix of two fine ones in huge blobs, of coarse ones in blobs hardly larger than a stone)."""
+    lo, hi = REMIX_BLOB_RANGE
+    return float(np.clip(REMIX_BLOB * max(element_size(m) for m in models), lo, hi))
 
 
 def random_labels(size, n_models, *, rng=None, scale=_BLOB, tile=False) -> np.ndarray:

@@ -16,7 +16,8 @@ from .common import (Progress, check_output, check_outputs, is_builtin, is_model
 from ..fit_options import build_model
 from .options import QUIET_OPTION, Size, depth_option
 
-__all__ = ["synth_several", "morph", "GUIDE_HELP", "TRANSITION_HELP", "DEFAULT_TRANSITION", "MAX_TRANSITION"]
+__all__ = ["synth_several", "morph", "GUIDE_HELP", "TRANSITION_HELP", "BLOB_HELP", "DEFAULT_TRANSITION",
+           "MAX_TRANSITION"]
 
 #: The steps ``synth --stages`` writes of a painted or remixed image (``synthesize_guided(return_stages=True)``);
 #: each layer's own between the regions and the layers (0.62): :func:`guided_stages`.
@@ -45,6 +46,10 @@ GUIDE_HELP = ("With several SOURCEs: a painted map with one flat grey level (or 
               "several SOURCEs make one texture of random regions of each (a remix).")
 TRANSITION_HELP = ("Width in pixels of the band around each painted edge in which the join between two regions "
                    "follows the textures (with several SOURCEs); 0: the painted edge itself.")
+BLOB_HELP = ("Size in pixels of a remix's random regions (several SOURCEs without --guide): the blur of its random "
+             "field, the regions about 2.3 times as wide. Default (0.64): 7 times the coarser SOURCE's element size "
+             "as its model's band statistics measure it, within 32-256 (beach gravel and leopard spots: about 155; "
+             "grass and denim: 45-57); 0.63 took 64 for all.")
 
 
 def _read(spec, downscale=None):
@@ -186,7 +191,7 @@ def _tell_colours(path, guide, labels, sources):
 
 
 def synth_several(ctx, sources, output, size, count, seed, guide, transition, save_model, exclude, downscale,
-                  progress, generation, options, depth=None, stages=False):
+                  progress, generation, options, depth=None, stages=False, blob=None):
     """``tghop synth`` with several SOURCEs or a --guide, as its only caller calls it (inside the command's
     user_errors; 0.62 dropped a check of one SOURCE without --guide, "a remix needs at least two SOURCEs", that
     could not be met); ``stages``: --stages, OUT_regions, OUT_layers and OUT_join beside each image (0.61;
@@ -271,8 +276,8 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
     rng = np.random.default_rng(seed)
     if hasattr(models[0], "names_"):  # materials: every map painted alike, OUT, OUT_<suffix>, ...
         def make():
-            maps = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
-                                     dtype=np.float32, return_stages=stages, **generation)
+            maps = synthesize_guided(models, painted, size=size, transition=transition, blob=blob, rng=rng,
+                                     progress=progress, dtype=np.float32, return_stages=stages, **generation)
             progress.close()
             return maps
 
@@ -283,8 +288,8 @@ def synth_several(ctx, sources, output, size, count, seed, guide, transition, sa
         return None, size, []
     first = []  # the steps written beside the first output
     for i, path in enumerate(outputs):
-        image = synthesize_guided(models, painted, size=size, transition=transition, rng=rng, progress=progress,
-                                  dtype=generation_dtype(depth), return_stages=stages, **generation)
+        image = synthesize_guided(models, painted, size=size, transition=transition, blob=blob, rng=rng,
+                                  progress=progress, dtype=generation_dtype(depth), return_stages=stages, **generation)
         progress.close()
         if stages:  # the steps and the result: all or none (0.62)
             image, steps = image

@@ -20,7 +20,7 @@ from .common import (HINT_DOWNSCALE_OPTION, Progress, check_model_output, check_
                      refuse_albedo_as_map, refuse_colour_map_out_of_place, read_image, summary,
                      draw_seed, tell_steps, tell_seed, user_errors, warn_written_with_8, write_materials, examples,
                      stage_paths, MATERIAL_STAGES, save_with_stages)
-from .guided import DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
+from .guided import BLOB_HELP, DEFAULT_TRANSITION, GUIDE_HELP, MAX_TRANSITION, TRANSITION_HELP
 from .options import (DOWNSCALE_HELP, EXCLUDE_HELP, FIT_OPTION_PARAMS, MAX_COUNT, QUIET_OPTION, Size,
                       depth_option, generation_options, generation_params, given_options, model_options,
                       refuse_patch_refine_of_saved, refuse_patch_refine_without_statistics, refuse_split_size)
@@ -286,6 +286,7 @@ def clusters(model_file, exemplar, output, stride, quiet):
 @click.option("--guide", metavar="MAP", default=None, help=GUIDE_HELP)
 @click.option("--transition", type=click.IntRange(min=0, max=MAX_TRANSITION), default=DEFAULT_TRANSITION,
               show_default=True, help=TRANSITION_HELP)
+@click.option("--blob", type=click.IntRange(min=1, max=MAX_TRANSITION), default=None, metavar="PX", help=BLOB_HELP)
 @depth_option("8; a material's maps: each at its file's depth, as far as the format holds it")
 @generation_options
 @model_options
@@ -304,8 +305,8 @@ def clusters(model_file, exemplar, output, stride, quiet):
 @QUIET_OPTION
 @click.option("--maps", "maps_given", is_flag=True, hidden=True)  # fit's: said so (click offered --gamma, --paper)
 @click.pass_context
-def synth(ctx, sources, output, size, count, seed, save_model, guide, transition, exclude, downscale, stages, quiet,
-          depth, maps_given, **options):
+def synth(ctx, sources, output, size, count, seed, save_model, guide, transition, blob, exclude, downscale, stages,
+          quiet, depth, maps_given, **options):
     """Synthesize texture images from SOURCE: an exemplar image, builtin:NAME, or a saved model.
 
     Several SOURCEs make one image: with --guide MAP each painted region is one SOURCE's
@@ -334,12 +335,14 @@ def synth(ctx, sources, output, size, count, seed, save_model, guide, transition
             first_step = "OUTPUT_regions" if len(sources) > 1 or guide is not None else "OUTPUT_quilt"
             raise click.UsageError(f"--stages needs a file name: it writes {first_step} and the others next to -o's "
                                    "image, so give -o a file name (e.g. -o out.png) or drop --stages")
+        if blob is not None and (len(sources) < 2 or guide is not None):
+            raise click.UsageError("--blob sizes a remix's regions (several SOURCEs without --guide); drop it")
         if len(sources) > 1 or guide is not None:
             from .guided import synth_several
 
             outputs, size, steps = synth_several(ctx, sources, output, size, count, seed, guide, transition,
                                                  save_model, exclude, downscale, progress, generation_params(options),
-                                                 options, depth, stages=stages)
+                                                 options, depth, stages=stages, blob=blob)
             if outputs is None:  # materials: it said what it wrote
                 tell_seed(seed, drawn, "the same material" if count == 1 else "the same materials")
                 return
