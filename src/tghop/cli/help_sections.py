@@ -19,7 +19,7 @@ HELP_ALL = "--help-all"
 #: The headings the options that are not a command's common ones are listed under, in this order, with the options
 #: (their parameters' names) each holds; a command lists those it has. Those of no heading: "Other options".
 SECTIONS = (
-    ("Several SOURCEs", ("guide", "transition")),
+    ("Several SOURCEs", ("guide", "transition", "blob")),
     ("What is written", ("depth", "stages")),
     ("Batch runs", ("workers", "scheduler", "retries", "task_timeout", "max_depth", "retry_failed", "force",
                     "prune")),
