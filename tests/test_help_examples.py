@@ -152,3 +152,4 @@ def test_help_leads_with_the_common_options_names_every_other_and_help_all_says_
         record = "".join(p.get_help_record(click.Context(main.get_command(None, command)))[1].split())
         assert record in "".join(every.split()), record  # spaces left out: click wraps at hyphens
     assert f"tghop {command} --help-all" in short.replace("main ", "tghop ")  # said where each one's help is
+    assert "Other options:" not in short  # a new option gets its heading in help_sections.SECTIONS
