@@ -301,7 +301,7 @@ def test_a_block_is_centred_on_each_edge_of_the_grown_picture():
     # edge, a band busier than the fill around it (the seam an artist saw on stone). Now a block is centred on each
     # of the picture's edges, half on it, and the blocks between are spread evenly at most a step apart. A hole
     # inside the picture (inpaint's order) keeps 0.59's grid.
-    from tghop.inpaint import _fill_order
+    from tghop.hole_quilting import _fill_order
 
     p, step = 32, 27
     hole = np.ones((384, 384), dtype=bool)

@@ -708,7 +708,7 @@ def test_tiled_block_grid_is_even_around_the_torus(n):
     # With tile, the blocks wrap: every gap, the one across the edge too, at most a step and
     # within a pixel of the others (every step from 0 left a block across the edge overlapping
     # the first by up to p - 1 pixels, and the fill there was chopped).
-    from tghop.inpaint import _grid
+    from tghop.hole_quilting import _grid
 
     p, step = 32, 27
     xs = _grid(n, p, step, tile=True)
@@ -721,7 +721,7 @@ def test_tiled_block_grid_is_even_around_the_torus(n):
 def test_blocks_that_see_no_known_pixel_are_filled_last():
     # A hole over a periodic image's left edge: the block at x=0 sees only hole; filled first
     # (at random), it set its neighbours, which do see the image, a second border to match.
-    from tghop.inpaint import _fill_order
+    from tghop.hole_quilting import _fill_order
 
     hole = np.zeros((64, 256), dtype=bool)
     hole[:, :40] = True

@@ -37,6 +37,11 @@ an exemplar), chosen so that they continue what surrounds them:
 With ``tile`` the image is a torus: blocks wrap around its edges and the filled image
 tiles seamlessly when the input does.
 
+The picture and its hole as taken (the mask's checks, an alpha channel, the integer depths) are
+:mod:`tghop.holes`'; step 2 is :func:`tghop.hole_quilting.quilt_hole`; steps 3 and 4 are
+:mod:`tghop.hole_refine`'s (0.64: the first two were part of this module, which re-exports
+:mod:`tghop.holes`' names).
+
 :func:`extend` grows an image to a larger size (outpainting): the image stays at an
 anchor of the larger canvas (:func:`tghop.canvas.expand_canvas`) and the rest is the hole.
 
@@ -63,13 +68,15 @@ from ._images import checked_image
 from ._progress import report
 from ._resources import one_blas_thread
 from .canvas import ANCHORS, expand_canvas
+from .hole_quilting import distance_to_known, quilt_hole
 from .hole_refine import refine_hole, stitch_hole
+from .holes import (LEVELS, MASK_BLACK_WHITE, MASK_PICTURE_SHARE, channel_mismatch, check_hole, grey_share,
+                    require_hole, split_alpha, with_alpha)
 from .masks import snap_to_levels
 from .layout import as_layout_progress, downsample, upsample
 from .patches import downsample_mask
-from .period import match_band
 from .pool import deferred_pool
-from .quilting import GUIDE_SCALE, boundary_cut_mask, default_overlap, flat_factors, gradient_energy
+from .quilting import flat_factors, gradient_energy
 from .patch_refine import refine_image, steps_for
 from .settings import BY_NAME, check_settings
 
@@ -82,136 +89,6 @@ PATCH_MARGIN = 64
 
 #: Pool of the coarse fill (:func:`inpaint`'s ``layout_weight``), as the coarse guide's.
 COARSE_PATCHES = 4000
-
-#: The image's known pixels within ``RIM_MATCH_WIDTH`` pixels of the hole (4-neighbour steps) count
-#: ``RIM_MATCH_WEIGHT`` times in a block's error: the pixels beside the hole decide the step at its rim, where a
-#: fill's pixels meet the image's without a cut (docs/choices.md, Inpainting "the rim in the matching").
-RIM_MATCH_WIDTH = 3
-RIM_MATCH_WEIGHT = 4.0
-
-#: A hole's block (``order`` "edge") counts its known pixels only within ``MATCH_BAND`` overlaps (8-neighbour steps) of
-#: its pixels still to fill, as quilting matches its overlap strips; 0: all its known pixels (0.60). Matched over a
-#: block's whole known part (up to 27 of 32 columns beside a hole's edge), the best patches were the blended ones,
-#: and a fill of large elements came out as a quilt of faint blocks (0.61; docs/choices.md, Inpainting "matched in a
-#: band"). A regular picture's blocks are matched within its period instead (:func:`tghop.period.match_band`: brick
-#: courses broke in the narrow band, 0.62). Row by row (:func:`extend`) a block is matched on all of them (0.60).
-MATCH_BAND = 1
-
-#: The integer images filled, each kept at its depth: its levels' top (``v / top`` is the value in [0, 1],
-#: as :func:`tghop.imageio.load_image` reads 16-bit files); a mask's hole is above half of it.
-LEVELS = {np.dtype(np.uint8): 255, np.dtype(np.uint16): 65535}
-
-
-def check_hole(mask, shape) -> np.ndarray:
-    """The hole of an image of ``shape`` as an (H, W) bool array.
-
-    Raises :class:`TGHopError` for a mask of another size, or with NaN or infinite values.
-
-    Parameters
-    ----------
-    mask : array_like, shape (H, W) or (H, W, C)
-        bool (True: hole), or numbers (> 0.5: hole; uint8 and uint16 levels: above half their
-        top; an (H, W, C) mask counts a pixel as hole when its channels' mean is).
-    shape : tuple of int, the image's shape (H, W) or (H, W, C); only H and W are read
-
-    Returns
-    -------
-    ndarray of bool, shape (H, W): True in the hole (it may be empty: :func:`require_hole` refuses that)
-    """
-    check_not_path(mask, "the mask")
-    arr = original = np.asarray(mask)
-    if arr.dtype.kind not in "biuf":
-        raise TGHopError(f"the mask must be numbers or booleans, got dtype {arr.dtype}")
-    if arr.dtype.kind == "f" and not np.isfinite(arr).all():
-        raise TGHopError("the mask has NaN or infinite values; give True (or 1) in the hole and False (0) elsewhere")
-    if arr.ndim == 3 and arr.shape[2]:  # no channels: refused as of another shape below (a mean of none was NaN)
-        arr = arr.mean(axis=2)
-    if arr.dtype != bool:
-        arr = arr > (LEVELS[original.dtype] / 2 if original.dtype in LEVELS else 0.5)
-    if arr.ndim != 2 or arr.shape != tuple(shape[:2]):
-        raise TGHopError(f"the mask is {'x'.join(map(str, arr.shape))} but the image is {shape[0]}x{shape[1]}; "
-                         "give an (H, W) or (H, W, C) mask of the image's size")
-    return arr
-
-
-#: A mask's pixels within this of black or white (their channels' mean, and their channels within this of
-#: each other) are black and white (:func:`grey_share`); ``tghop inpaint`` and the web server warn where more than
-#: MASK_PICTURE_SHARE are not (a feathered brush's edges: 5 % for a circle of radius 60 blurred by sigma 4, 19 % by
-#: sigma 16; a photograph: 24-100 % of the 44 exemplars).
-MASK_BLACK_WHITE = 0.15
-MASK_PICTURE_SHARE = 0.2
-
-
-def grey_share(mask) -> float:
-    """The share of a mask's pixels that are neither black nor white (:data:`MASK_BLACK_WHITE`), of every other
-    pixel in each direction: more than :data:`MASK_PICTURE_SHARE` is a picture given as a mask (or a picture and
-    its mask swapped), whose light pixels are taken as the hole.
-
-    Parameters
-    ----------
-    mask : ndarray, shape (H, W, C)
-        Floats in [0, 1], its alpha channel left out.
-
-    Returns
-    -------
-    float in [0, 1]
-    """
-    sample = np.asarray(mask)[::2, ::2]  # every other pixel: a share, at a quarter of the memory of a large mask's
-    black_white = ((np.abs(sample.mean(axis=2) - 0.5) > 0.5 - MASK_BLACK_WHITE)
-                   & (np.ptp(sample, axis=2) <= MASK_BLACK_WHITE))
-    return 1 - float(black_white.mean())
-
-
-def require_hole(hole, mask_name: str) -> None:
-    """Refuse a hole (from :func:`check_hole`) with no pixel in it: nothing would be filled.
-
-    Parameters
-    ----------
-    hole : array_like of bool, shape (H, W)
-    mask_name : str, the mask in the message, e.g. ``"MASK m.png"``
-    """
-    if not np.any(hole):
-        raise TGHopError(f"{mask_name} has no white pixel, so there is nothing to fill; paint the hole white "
-                         "(a pixel whose channels' mean is above mid-grey)")
-
-
-def split_alpha(picture):
-    """A grey+alpha or RGBA picture (H, W, 2 or 4) as its colours and its alpha channel
-    (H, W, 1), of the picture's dtype; other pictures as they are and None.
-
-    Parameters
-    ----------
-    picture : array_like, shape (H, W) or (H, W, C), any dtype (nothing is checked or converted)
-
-    Returns
-    -------
-    colours : ndarray, shape (H, W, C - 1) (a copy) for C in {2, 4}, else ``picture`` as an array
-    alpha : ndarray, shape (H, W, 1) (a view), or None
-    """
-    arr = np.asarray(picture)
-    if arr.ndim == 3 and arr.shape[2] in (2, 4):
-        return np.ascontiguousarray(arr[..., :-1]), arr[..., -1:]
-    return arr, None
-
-
-def with_alpha(filled, alpha, hole):
-    """The filled picture (H, W, C) with the alpha channel :func:`split_alpha` took (or None: ``filled`` as
-    it is) back as its last channel: as it was outside the hole, opaque in it (8-bit 255, 16-bit 65535, else 1.0).
-
-    Parameters
-    ----------
-    filled : ndarray, shape (H, W, C), of the alpha's depth (its levels are cast, not rescaled)
-    alpha : ndarray, shape (H, W, 1), or None
-    hole : ndarray of bool, shape (H, W)
-
-    Returns
-    -------
-    ndarray, shape (H, W, C + 1), ``filled``'s dtype; ``filled`` itself when ``alpha`` is None
-    """
-    if alpha is None:
-        return filled
-    alpha = np.where(hole[..., None], LEVELS.get(alpha.dtype, 1.0), alpha).astype(filled.dtype)
-    return np.concatenate([filled, alpha], axis=2)
 
 
 @one_blas_thread()  # the same image with any number of threads or concurrent callers
@@ -294,31 +171,6 @@ def _working_image(image, n_channels):
                      f"{'colour' if n_channels == 1 else 'greyscale'} exemplar (or on the image itself)")
 
 
-def channel_mismatch(image, n_channels):
-    """Why a model of ``n_channels`` channels cannot fill ``image`` ((H, W) or (H, W, C)), as
-    ``(what the model is, what the image is)`` ("greyscale", "has colour"), or None when it can: the same
-    channels, or a greyscale model and an RGB image whose three channels are equal. What :func:`inpaint`
-    refuses, for a check before a model is fitted.
-
-    Parameters
-    ----------
-    image : array_like, shape (H, W) or (H, W, C)
-    n_channels : int, the model's channels
-
-    Returns
-    -------
-    tuple of (str, str), or None: ``("in colour", "is greyscale")`` for any other mismatch than the one above
-    """
-    arr = np.asarray(image)
-    c = 1 if arr.ndim == 2 else arr.shape[2]
-    if c == n_channels or (n_channels == 1 and c == 3
-                           and np.array_equal(arr[..., 1:], np.repeat(arr[..., :1], 2, axis=2))):
-        return None
-    if n_channels == 1 and c == 3:
-        return "greyscale", "has colour"
-    return "in colour", "is greyscale"
-
-
 def _into(original, hole, values):
     """``original`` with ``values`` (floats (k, C) of :func:`_working_image`'s channels) in its
     ``hole``: a copy of a uint8 or uint16 image with the values rounded to its levels (known
@@ -335,50 +187,6 @@ def _into(original, hole, values):
         out = original.astype(np.float64)
         out[hole] = np.clip(values.astype(np.float64), 0.0, 1.0)
     return out
-
-
-def _grid(n, p, step, tile, edges=()):
-    """Block positions along one axis: every ``step`` from 0, the last one at ``n - p``
-    (inside the image); with ``tile`` evenly around the torus, at most ``step`` apart (every
-    ``step`` left the block across the edge overlapping the first by up to ``p - 1`` pixels,
-    where the seams are cut in ``p - step``). ``edges`` (without ``tile``): positions of a grown
-    picture's edges along this axis (:func:`_picture_edges`): a block is centred on each, half of it
-    on the picture, and the blocks between are spread evenly, at most ``step`` apart (0.60;
-    docs/choices.md, Inpainting "the blocks across a grown picture's edge")."""
-    if tile:
-        k = -(-n // step)
-        return np.unique(np.round(np.arange(k) * (n / k)).astype(np.int64))
-    centred = {e - p // 2 for e in edges if 0 < e - p // 2 < n - p}
-    if not centred:
-        return np.unique(np.minimum(np.arange(0, max(n - p, 0) + step, step), n - p))
-    fixed = sorted({0, n - p} | centred)
-    out = [np.array(fixed[:1])]
-    for a, b in zip(fixed[:-1], fixed[1:]):
-        k = -(-(b - a) // step)
-        out.append(a + np.round(np.arange(1, k + 1) * ((b - a) / k)).astype(np.int64))
-    return np.unique(np.concatenate(out))
-
-
-def _picture_edges(hole, axis):
-    """The edges along ``axis`` (0: rows, 1: columns) of the known pixels' extent that lie inside the image: a
-    grown picture's (:func:`extend`); none where the known pixels reach both ends of the axis (a hole inside them)."""
-    inside = np.flatnonzero((~hole).any(axis=1 - axis))
-    if not inside.size:
-        return ()
-    return tuple(e for e in (int(inside[0]), int(inside[-1]) + 1) if 0 < e < hole.shape[axis])
-
-
-def _distance_to_known(hole, tile):
-    """Euclidean distance of each pixel to the nearest known one (0 on known pixels);
-    on a torus with ``tile``. All hole: inf."""
-    from scipy.ndimage import distance_transform_edt
-
-    if hole.all():
-        return np.full(hole.shape, np.inf)
-    if not tile:
-        return distance_transform_edt(hole)
-    h, w = hole.shape
-    return distance_transform_edt(np.tile(hole, (3, 3)))[h:2 * h, w:2 * w]
 
 
 @one_blas_thread()  # the same image with any number of threads or concurrent callers
@@ -430,7 +238,8 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
         pixels, worse for a hole inside them; docs/choices.md, Inpainting "0.46"); row by row,
         a block is centred on each edge of the known pixels' extent that lies inside the image
         (a grown picture's edges, 0.60) and matched on all its known pixels; from the edge, on
-        those within an overlap of its pixels to fill (:data:`MATCH_BAND`, 0.61), a regular picture's period (0.62).
+        those within an overlap of its pixels to fill (:data:`tghop.hole_quilting.MATCH_BAND`, 0.61), a regular
+        picture's period (0.62).
     seam_window : int
         Remove the steps in tone across the fill's seams, between its blocks and at the hole's
         edge, in the gradient domain (:func:`tghop.hole_refine.stitch_hole`, the known pixels held), each seam
@@ -528,9 +337,9 @@ def inpaint(model, image, mask, *, rng=None, tile=False, n_patches=5000, toleran
     if return_stages:  # as synthesize's: the pool the fill drew from, (n, P, P, C) float32
         stages["pool"] = pool
     guide = None if guide is None else (guide, float(layout_weight))
-    distance = _distance_to_known(hole, tile)  # once: the fill's order, its guide's ramp and the fades
-    filled, owner = _fill(work, hole, distance, pool, (flat_pool, squares, energy, flat), p, tile, float(tolerance),
-                          float(detail), guide, order, rng, progress)
+    distance = distance_to_known(hole, tile)  # once: the fill's order, its guide's ramp and the fades
+    filled, owner = quilt_hole(work, hole, distance, pool, (flat_pool, squares, energy, flat), p, tile,
+                               float(tolerance), float(detail), guide, order, rng, progress)
     del pool, flat_pool, squares, guide  # let go before the refinements (their peak; stages keep their copy)
     keep("quilt", filled)
     if seam_window:
@@ -659,7 +468,7 @@ def inpaint_material(material, images, mask, *, rng=None, tile=False, refine=5, 
             if return_stages and hole.any() else None)
     alpha = None
     if (refine or stats is not None) and blend and hole.any():
-        alpha = np.clip(_distance_to_known(hole, tile) / (blend + 1), 0.0, 1.0).astype(np.float32)[..., None]
+        alpha = np.clip(distance_to_known(hole, tile) / (blend + 1), 0.0, 1.0).astype(np.float32)[..., None]
     out = {}
     for i, (name, part) in enumerate(zip(names, material.map_slices())):
         img = np.ascontiguousarray(filled[..., part])
@@ -703,44 +512,6 @@ def _patch_refine_hole(image, hole, stats, n_steps, tile, alpha, progress):
     return out
 
 
-def _rim_weights(hole, tile):
-    """(H, W) float32: ``RIM_MATCH_WEIGHT`` on the known pixels within ``RIM_MATCH_WIDTH`` 4-neighbour steps of
-    ``hole`` (around a periodic image's edges with ``tile``), 1 elsewhere."""
-    from scipy.ndimage import binary_dilation
-
-    r = RIM_MATCH_WIDTH
-    if r <= 0 or RIM_MATCH_WEIGHT == 1.0:
-        return np.ones(hole.shape, dtype=np.float32)
-    grown = binary_dilation(np.pad(hole, r, mode="wrap" if tile else "constant"), iterations=r)[r:-r, r:-r]
-    return np.where(grown & ~hole, np.float32(RIM_MATCH_WEIGHT), np.float32(1.0))
-
-
-def _fill_order(hole, p, step, tile, order="edge", distance=None):
-    """The (y, x) of the ``p x p`` blocks that touch the hole, in the order they are filled:
-    from the hole's edge inwards (then in raster order), those that see no known pixel after
-    all the others (a block next to the hole's edge but not across it, such as the first
-    block of a hole at a periodic image's edge: filled before its neighbours, at random, it
-    set them a second border to match, and the fill there was chopped). ``order`` "raster":
-    row by row instead, as quilting does (:func:`extend`). ``distance``: the hole's
-    :func:`_distance_to_known`, where the caller has it."""
-    h, w = hole.shape
-    offsets = np.arange(p)
-    distance = _distance_to_known(hole, tile) if distance is None else distance
-    blocks = []
-    # Row by row (extend's order), a block centred on each edge of the picture (0.60)
-    edges = (_picture_edges(hole, 0), _picture_edges(hole, 1)) if order == "raster" and not tile else ((), ())
-    for y in _grid(h, p, step, tile, edges[0]).tolist():
-        rows = (y + offsets) % h
-        for x in _grid(w, p, step, tile, edges[1]).tolist():
-            cols = (x + offsets) % w
-            inside = hole[np.ix_(rows, cols)]
-            if inside.any():
-                blocks.append((bool(inside.all()), distance[np.ix_(rows, cols)][inside].min(), y, x))
-    if order == "raster":
-        return [(y, x) for _, _, y, x in blocks]  # made row by row
-    return [(y, x) for _, _, y, x in sorted(blocks)]
-
-
 #: The coarse fill's steps that report their progress (:func:`inpaint`'s), each an equal part of its "layout".
 COARSE_FILL_PARTS = ("inpainting", "seams", "refine")
 
@@ -770,80 +541,3 @@ def _coarse_fill(model, work, hole, tile, order, flat_share, seam_window, rng, p
     guide = upsample(filled.astype(np.float32), f, (hh * f, ww * f), wrap=tile)[:h, :w]
     report(progress, "layout", 1000, 1000)
     return guide
-
-
-def _fill(work, hole, distance, pool, tables, p, tile, tolerance, detail, guide, order, rng, progress):
-    """Quilt generated patches into the hole of ``work`` (float32, (H, W, C)); returns the canvas and
-    the block each pixel came from ((H, W) int, -1 where it is the image's own).
-    ``distance``: the hole's :func:`_distance_to_known`. ``tables``: the pool's rows (n, P*P*C),
-    their squared norms per pixel (n, P*P), gradient energies (n,) and error factors (n,) or None.
-    ``guide``: None, or an (H, W, C) coarse fill and its weight (:func:`inpaint`'s ``layout_weight``)."""
-    from scipy.ndimage import maximum_filter
-
-    h, w, c = work.shape
-    flat, squares, energy, factor = tables
-    overlap = default_overlap(p)
-    step = p - overlap
-    canvas = work.copy()
-    canvas[hole] = 0.0
-    known = ~hole
-    owner = np.full((h, w), -1, dtype=np.int32)  # the block each hole pixel was pasted from last
-    offsets = np.arange(p)
-    rim = _rim_weights(hole, tile)
-    band = match_band(work, hole, MATCH_BAND * overlap, p) if order == "edge" else 0  # a regular picture's period
-    if guide is not None:  # the pool's box means, as quilting compares them with its guide
-        guide, guide_weight = guide
-        # The guide counts from nothing at the hole's edge to whole a patch side inside it:
-        # next to the known pixels the fill follows them (a coarse fill is a few pixels off).
-        reach = np.clip(distance / p, 0.0, 1.0).astype(np.float32)
-        s = GUIDE_SCALE if p % GUIDE_SCALE == 0 else 1
-        q = p // s
-        low = pool.reshape(len(pool), q, s, q, s, c).mean(axis=(2, 4), dtype=np.float32).reshape(len(pool), -1)
-        low_squares = low * low
-    blocks = _fill_order(hole, p, step, tile, order, distance)
-    report(progress, "inpainting", 0, len(blocks))
-    for done, (y, x) in enumerate(blocks, start=1):
-        window = np.ix_((y + offsets) % h, (x + offsets) % w)
-        old = canvas[window]  # (P, P, C)
-        have = known[window]  # pixels with a value: the image's and those filled before
-        weight = np.where(have, rim[window], np.float32(0.0))
-        if band and not have.all():  # the known pixels near those to fill, as quilting's overlap strips (0.61)
-            weight = np.where(maximum_filter(~have, size=2 * band + 1, mode="constant"), weight, np.float32(0.0))
-        err = None
-        if weight.any():
-            target = (old * weight[..., None]).ravel()
-            # ||p||^2 over the known pixels - 2 p.o + ||o||^2 (each pixel weighted), for every pool patch at once.
-            err = squares @ weight.ravel() - 2.0 * (flat @ target) + float(target @ old.ravel())
-        if guide is not None and not have.all():
-            # The same over the guide's box means, each box weighted by its share of pixels not
-            # yet filled, per pixel as the known pixels' error (quilting's guide term).
-            share = np.where(have, np.float32(0.0), reach[window]).reshape(q, s, q, s).mean(axis=(1, 3))
-            share = np.repeat(share[..., None], c, axis=2)
-            boxes = guide[window].reshape(q, s, q, s, c).mean(axis=(1, 3), dtype=np.float32)
-            term = (low_squares @ share.ravel() - 2.0 * (low @ (share * boxes).ravel())
-                    + float((share * boxes * boxes).sum()))
-            scale = guide_weight * max(float(np.count_nonzero(weight)), p * overlap) / (q * q)
-            err = scale * term if err is None else err + scale * term
-        if err is not None and factor is not None:
-            err = err * factor
-        if err is not None:
-            best = max(float(err.min()), 0.0)
-            candidates = np.flatnonzero(err <= best * (1.0 + tolerance) + 1e-4 * (1.0 + best))
-        else:
-            candidates = np.arange(len(pool))
-        if detail > 0 and candidates.size > 1:
-            ranked = candidates[np.argsort(energy[candidates], kind="stable")]
-            skip = min(int(detail * ranked.size), ranked.size - 1)
-            candidates = ranked[skip:]
-        new = pool[candidates[rng.integers(candidates.size)]]
-        pixel_err = np.square(old - new).sum(axis=2)
-        pixel_err[~have] = 0.0
-        sides = {side: overlap if strip.any() else 0 for side, strip in (
-            ("left", have[:, :overlap]), ("top", have[:overlap]), ("right", have[:, -overlap:]),
-            ("bottom", have[-overlap:]))}
-        paste = (boundary_cut_mask(pixel_err, **sides) | ~have) & hole[window]
-        canvas[window] = np.where(paste[..., None], new, old)
-        owner[window] = np.where(paste, done, owner[window])
-        known[window] |= hole[window]
-        report(progress, "inpainting", done, len(blocks))
-    return canvas, owner
