@@ -326,10 +326,10 @@ def test_a_fits_progress_in_a_log_has_a_line_for_every_part_of_its_work(folder, 
 
 
 def test_the_progress_in_a_log_says_a_long_stages_tenths_and_where_it_stopped(capsys, monkeypatch):
-    import tghop.cli.common as common
+    import tghop.cli.progress as bars  # where Progress reads LOG_EVERY (tghop.cli.common re-exports Progress only)
 
-    monkeypatch.setattr(common, "LOG_EVERY", 0.0)  # every tenth, however fast (10 s apart otherwise)
-    progress = common.Progress(True)
+    monkeypatch.setattr(bars, "LOG_EVERY", 0.0)  # every tenth, however fast (10 s apart otherwise)
+    progress = bars.Progress(True)
     for done in range(0, 101, 3):
         progress("quilting", done, 100)
     progress("quilting", 100, 100)
@@ -343,7 +343,7 @@ def test_the_progress_in_a_log_says_a_long_stages_tenths_and_where_it_stopped(ca
     assert [line.split(" after")[0] for line in lines[10:]] == [f"refine: {p} %" for p in (12, 21, 30, 42)] + [
         "refine: stopped at 42 %"], lines
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True)  # a terminal: click's bar, as before, and no lines
-    bar = common.Progress(True)
+    bar = bars.Progress(True)
     bar("quilting", 50, 100)
     assert bar.bar is not None and not bar.lines
     bar.close()
@@ -935,12 +935,16 @@ def test_a_command_imports_only_its_own_module_of_the_command_line(folder):
     # `tghop synth` builds no other command's options (batch's, evaluate's, cooc's ...; texture's
     # commands take guided's constants); the list of commands (--help) and a mistyped name
     # (click's "Did you mean") see them all.
+    # The shared helpers' modules (0.64: common's parts) load with the group, for every command.
+    shared = ('common', 'errors', 'progress', 'inputs', 'outputs', 'materials', 'group', 'options', 'lines',
+              'help_sections')
     code = (
         "import atexit, sys\n"
         "import tghop.cli\n"
+        f"SHARED = {shared!r}\n"
         "def loaded():\n"
         "    return sorted(m.split('.')[2] for m in sys.modules if m.startswith('tghop.cli.')\n"
-        "                  and m.split('.')[2] not in ('common', 'group', 'options', 'lines', 'help_sections'))\n"
+        "                  and m.split('.')[2] not in SHARED)\n"
         "print('AT_IMPORT', loaded(), file=sys.stderr)\n"
         "atexit.register(lambda: print('AT_EXIT', loaded(), file=sys.stderr))\n"
         "sys.argv[0] = 'tghop'\n"

@@ -214,18 +214,18 @@ def test_check_outputs_sees_links_and_spellings(tmp_path, monkeypatch):
     check_outputs([("-o", tmp_path / "b.png")], [("IN", tmp_path / "a.png")])
     check_outputs([("-o", tmp_path / "c.png")], [("IN", tmp_path / "c.png")])  # no such input: its reader says so
     # --count's largest set: each name looked at once, not every pair (1000 names: 38 s pairwise)
-    import tghop.cli.common as common
+    import tghop.cli.outputs as outputs  # where check_outputs looks _file_key up
 
     looked_at = []
-    file_key = common._file_key
-    monkeypatch.setattr(common, "_file_key", lambda path: looked_at.append(path) or file_key(path))
-    check_outputs([("-o", path) for path in common.numbered(str(tmp_path / "n.png"), 1000)],
+    file_key = outputs._file_key
+    monkeypatch.setattr(outputs, "_file_key", lambda path: looked_at.append(path) or file_key(path))
+    check_outputs([("-o", path) for path in outputs.numbered(str(tmp_path / "n.png"), 1000)],
                   [("IN", tmp_path / "a.png")])
     assert len(looked_at) == 1001
     monkeypatch.undo()
     (tmp_path / "a_0500.png").write_bytes(b"x")
     with pytest.raises(TGHopError, match="would overwrite IN"):
-        check_outputs([("-o", path) for path in common.numbered(str(tmp_path / "a.png"), 1000)],
+        check_outputs([("-o", path) for path in outputs.numbered(str(tmp_path / "a.png"), 1000)],
                       [("IN", tmp_path / "a_0500.png")])
 
 
