@@ -9,6 +9,7 @@ Dask is an optional extra (:data:`INSTALL_HINT`), imported inside the functions 
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import gc
 import os
@@ -532,8 +533,13 @@ def _next_group(finished, lost, every=2.0, overdue=None):
     return group
 
 
-#: How long the driver waits for a worker restarted after a task timeout (:func:`run_distributed`; 0.63) to be back.
+#: How long a restart after a task timeout (:func:`run_distributed`; 0.63) may take, the worker back included: it
+#: runs beside the run (0.64; 0.63's driver waited for it, collecting no result meanwhile); one that fails is said
+#: in a warning.
 RESTART_TIMEOUT = 120
+#: How long the driver waits for the nannies of timed-out workers to name them (:func:`_worker_names`; 0.64: 0.63 waited
+#: without a limit); past it, or where one fails, a worker is named by its address.
+NAME_TIMEOUT = 5.0
 
 
 def worker_process(dask_worker) -> str:
@@ -546,38 +552,80 @@ def worker_process(dask_worker) -> str:
 
 def _worker_names(client, addresses) -> dict:
     """address -> ``host:pid`` of the workers at ``addresses``, asked of their nannies (a busy worker's own event loop
-    may wait on its task); a worker without a nanny, or one whose nanny fails, is left out (named by its address)."""
+    may wait on its task); a worker without a nanny, one whose nanny fails, and all where the answer takes longer than
+    :data:`NAME_TIMEOUT` (0.64: ``Client.run`` has no timeout; the call is left to end in a thread of its own) are left
+    out (named by their address)."""
     if not addresses:
         return {}
+    answer = queue.SimpleQueue()
+
+    def ask():
+        try:
+            answer.put(client.run(worker_process, workers=list(addresses), nanny=True, on_error="return"))
+        except Exception:  # noqa: BLE001 - no nanny, or the scheduler lost: the address names it
+            answer.put({})
+
+    threading.Thread(target=ask, name="tghop-batch-names", daemon=True).start()
     try:
-        said = client.run(worker_process, workers=list(addresses), nanny=True, on_error="return")
-    except Exception:  # noqa: BLE001 - no nanny, or the scheduler lost: the address names it
+        said = answer.get(timeout=NAME_TIMEOUT)
+    except queue.Empty:
         return {}
     return {address: name for address, name in said.items() if isinstance(name, str)}
 
 
-def _stop_overdue(client, late, by_key, handed, seconds) -> tuple:
-    """``(done, restarted)``: the (job, record) of each future of ``late`` (running past the task timeout,
+class _Restart:
+    """Workers restarted through their nannies (``Client.restart_workers``) in a thread of its own, so that the run
+    goes on meanwhile (0.64); once done (or failed: ``failed``, address -> Dask's word, "timed out" or an error), put
+    into the run's queue of finished futures (``wake``), which it wakes. ``key`` None: no future's."""
+
+    key = None
+
+    def __init__(self, client, addresses, wake):
+        self.addresses, self.failed = list(addresses), {}
+        threading.Thread(target=self._run, args=(client, wake), name="tghop-batch-restart", daemon=True).start()
+
+    def _run(self, client, wake):
+        try:
+            said = client.restart_workers(self.addresses, timeout=RESTART_TIMEOUT, raise_for_error=False) or {}
+        except Exception as exc:  # noqa: BLE001 - said in the run's warning
+            said = dict.fromkeys(self.addresses, one_line(exc))
+        self.failed = {a: str(v) for a, v in said.items() if v != "OK"}
+        wake.put(self)
+
+
+def _restart_failed(failed) -> str:
+    """The warning of workers (``failed``: address -> Dask's word) whose restart after a task timeout failed."""
+    shown = ", ".join(f"{a}: {v}" for a, v in list(failed.items())[:5]) + (" ..." if len(failed) > 5 else "")
+    return (f"{'a Dask worker' if len(failed) == 1 else f'{len(failed)} Dask workers'} restarted after a task timeout "
+            f"did not come back within {RESTART_TIMEOUT} s ({shown}); the run goes on with the other workers (a local "
+            "cluster without any stops with one line once Dask's distributed.deploy.lost-worker-timeout has passed; "
+            "another waits until a worker joins)")
+
+
+def _stop_overdue(client, late, running, by_key, handed, seconds) -> tuple:
+    """``(done, restarted, taken)``: the (job, record) of each future of ``late`` (running past the task timeout,
     ``seconds``; ``handed``: key -> the (monotonic, wall) time it was handed out), a record of
     :func:`tghop.batch_task.timed_out_record` naming its worker as other records do, ``host:pid`` (0.63; 0.62 gave its
-    address, ``tcp://...``), and the addresses of their workers, each restarted (through its nanny;
-    Dask cannot stop a running thread) once the tasks are cancelled, so that it is free again. A worker without a
-    nanny (``dask worker --no-nanny``, a cluster of threads) is not restarted: its thread runs on to the task's end,
-    and its files are dropped (the exemplar's claim is gone once its line is written)."""
-    try:  # the workers running them: the scheduler's record
-        on = {key: address for address, running in client.processing().items() for key in running}
+    address, ``tcp://...``); the addresses of their workers that have a nanny, to restart (Dask cannot stop a running
+    thread) once the tasks are cancelled, so that they are free again; and the futures of ``running`` (not late) on
+    those workers, which the restart would kill: cancelled too (0.64), their jobs to hand out again under new keys, so
+    that they count no death against the exemplar's tries (0.63 left them to Dask, which counted one, and with
+    ``retries=0`` recorded them failed). A worker without a nanny (``dask worker --no-nanny``, a cluster of threads) is
+    not restarted: its thread runs on to the task's end, its other tasks with it, and the late task's files are
+    dropped (the exemplar's claim is gone once its line is written)."""
+    try:  # the workers running them: the scheduler's record; which have a nanny
+        on = {key: address for address, keys in client.processing().items() for key in keys}
+        info = client.scheduler_info().get("workers", {})
     except Exception:  # noqa: BLE001 - a scheduler lost: said by the next call of the run
-        on = {}
-    restarted = sorted({on[fut.key] for fut in late if fut.key in on})
-    named = _worker_names(client, restarted)
+        on, info = {}, {}
+    restarted = sorted({on[fut.key] for fut in late if fut.key in on and (info.get(on[fut.key]) or {}).get("nanny")})
+    named = _worker_names(client, sorted({on[fut.key] for fut in late if fut.key in on}))
     done = [(by_key[fut.key], {**timed_out_record(by_key[fut.key], seconds, handed[fut.key][1], lost=fut.key in on),
                                "worker": named.get(on.get(fut.key), on.get(fut.key))}) for fut in late]
+    taken = [fut for fut in running if fut not in late and on.get(fut.key) in restarted and not fut.done()]
     with contextlib.suppress(Exception):
-        client.cancel(late, force=True)
-    if restarted:
-        with contextlib.suppress(Exception):  # no nanny: the worker runs on, busy until the task ends
-            client.restart_workers(restarted, timeout=RESTART_TIMEOUT, raise_for_error=False)
-    return done, restarted
+        client.cancel([*late, *taken], force=True)
+    return done, restarted, taken
 
 
 def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, retries, begin, worker_setup=None,
@@ -623,12 +671,15 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
         # a worker holds only the task it runs. Dask would place every task on a worker at
         # once (tasks of different names are not "root-ish", so it queues none on the
         # scheduler), and a worker's death would count against the tasks waiting on it too.
-        order = iter(sorted(jobs, key=_cost, reverse=True))
+        order = collections.deque(sorted(jobs, key=_cost, reverse=True))
         # Each future put into `finished` once done (Future.add_done_callback: in Dask's callback thread, on the
         # future's own client's loop; as_completed would take the default client's, which may be another, one closed
         # by now: its futures were never reported, and the run waited for ever). `running`: handed out, not taken.
         by_key, running, finished = {}, set(), queue.SimpleQueue()
         handed, dropped = {}, set()  # key -> (monotonic, wall) time of its hand-out; keys stopped by the timeout
+        # 0.64: a restart after a task timeout runs beside the run (_Restart); meanwhile its worker is handed nothing
+        # (what it got would die with it), and the other tasks it ran are handed out again first (requeued)
+        restarting, requeued = set(), []
 
         def overdue():
             if task_timeout is None:
@@ -641,8 +692,11 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
 
         def hand_out():
             nthreads = client.nthreads()
-            slots = max(1, sum(nthreads.values()))  # again each time: a cluster may grow
-            gone = [a for a in seen if a not in nthreads]
+            free = {a: n for a, n in nthreads.items() if a not in restarting}
+            # again each time: a cluster may grow; none while every worker is being restarted (0.64: a task's time
+            # counts from its hand-out, and a worker's start is no part of it)
+            slots = sum(free.values()) if restarting else max(1, sum(nthreads.values()))
+            gone = [a for a in seen if a not in nthreads and a not in restarting]
             if gone:  # a worker killed (the run went on without a word) or stopped
                 warnings.warn(_workers_gone(gone, seen, own_cluster is not None, _running_on(client, gone, by_key)),
                               stacklevel=2)
@@ -653,32 +707,42 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
             if not seen or gone or set(nthreads) - set(seen):
                 info = client.scheduler_info().get("workers", {})
                 seen.clear()
-                seen.update({a: info.get(a, {}).get("name", a) for a in nthreads})
-            now = [job for _, job in zip(range(slots - len(running)), order)]
+                seen.update({a: info.get(a, {}).get("name", a) for a in nthreads if a not in restarting})
+            n = max(0, slots - len(running))
+            again, requeued[:] = requeued[:n], requeued[n:]  # begun already: their claims stand
+            now = again + [order.popleft() for _ in range(min(n - len(again), len(order)))]
             keys = [f"tghop-batch-{job['name']}-{job['sha256'] or 'none'}-{time.time_ns()}" for job in now]
-            for job in now:
+            for job in now[len(again):]:
                 own_files[0] = True
                 begin(job)
                 own_files[0] = False
             if now:  # one message to the scheduler for them all (0.59: client.submit each)
-                # run_checked: a worker that joins later, past the check above, may have another tghop or none
-                new = client.map(run_checked, [task] * len(now), now, [__version__] * len(now), key=keys, pure=False)
+                # run_checked: a worker that joins later, past the check above, may have another tghop or none; not to
+                # a worker being restarted while it is still there (0.64; loose: where those others left, anywhere)
+                away = {"workers": list(free), "allow_other_workers": True} if set(nthreads) & restarting else {}
+                new = client.map(run_checked, [task] * len(now), now, [__version__] * len(now), key=keys, pure=False,
+                                 **away)
                 by_key.update({fut.key: job for fut, job in zip(new, now)})
                 handed.update(dict.fromkeys([fut.key for fut in new], (time.monotonic(), time.time())))
                 futures.extend(new)
                 running.update(new)
                 for fut in new:
                     fut.add_done_callback(finished.put)
-            counts["running"] = len(running)
+            counts["running"] = len(running) + len(requeued)
 
         hand_out()
         lost = _workers_lost(client, own_cluster, bool(seen))
-        while running:
+        while running or requeued or (order and restarting):
             # What came back since the last group, taken together (0.59; 0.58 took one result at a time): one
             # gather of their results, one look at the workers (hand_out) and one sync of their ledger lines
             # (finish) for the group; each a round trip or a disk's flush, which per exemplar bounded a large
             # cluster to tens of exemplars a second (docs/batch.md, "The driver's cost per exemplar").
-            group = [fut for fut in _next_group(finished, lost, overdue=overdue) if fut.key not in dropped]
+            came = _next_group(finished, lost, overdue=overdue)
+            for restart in [r for r in came if isinstance(r, _Restart)]:  # done: its worker may have work again
+                restarting.difference_update(restart.addresses)
+                if restart.failed:
+                    warnings.warn(_restart_failed(restart.failed), stacklevel=2)
+            group = [fut for fut in came if not isinstance(fut, _Restart) and fut.key not in dropped]
             running.difference_update(group)
             done = _results(client, group, by_key, retries if own_cluster is not None else None,
                             None if own_cluster is not None else check_joined) if group else []
@@ -688,10 +752,16 @@ def run_distributed(jobs, finish, counts, task, *, workers, client, own_client, 
             if late:  # past the task timeout (0.63): the exemplar's failure, its worker restarted
                 dropped.update(fut.key for fut in late)
                 running.difference_update(late)
-                stopped, restarted = _stop_overdue(client, late, by_key, handed, task_timeout)
+                stopped, restarted, taken = _stop_overdue(client, late, running, by_key, handed, task_timeout)
                 done += stopped
+                dropped.update(fut.key for fut in taken)  # handed out again: no death of theirs (0.64)
+                running.difference_update(taken)
+                requeued.extend(by_key[fut.key] for fut in taken)
                 for address in restarted:  # not "a worker left the cluster mid-run": restarted on purpose
                     seen.pop(address, None)
+                if restarted:
+                    restarting.update(restarted)
+                    _Restart(client, restarted, finished)
             try:
                 hand_out()  # before the ledger lines: the freed workers start at once
             except TGHopError:  # a worker that joined without this tghop (check_workers_tghop): the run stops
