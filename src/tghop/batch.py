@@ -213,7 +213,8 @@ def run(source, outdir, *, count=1, size=(256, 256), seed=None, tile=False, fit=
         Seconds after which an exemplar's task is stopped and recorded as its failure (0.63; None, the default: no
         limit): ``cause`` "input", skipped by reruns until its input or settings change, a longer ``task_timeout``
         is given, or ``retry_failed``; the run goes on. On Dask, counted from its hand-out; the task is cancelled
-        and its worker restarted (through its nanny: one without runs on to the task's end, its files dropped). In
+        and its worker restarted (through its nanny: one without runs on to the task's end, its files dropped),
+        beside the run (0.64), its other tasks handed out again without a death counted against them (0.64). In
         this process (``workers=1``), by a timer's signal in the main thread (POSIX; elsewhere refused): a single
         call into C code that never returns is not stopped there.
     on_orphans : callable(orphans), optional
