@@ -1470,6 +1470,19 @@ def test_a_task_past_the_timeout_in_process_is_its_exemplars_failure(tmp_path):
     assert "needs the main thread" in str(stopped[0].value) and not (tmp_path / "o2").exists()
 
 
+def test_a_task_timeout_too_short_or_too_long_for_the_timer_is_the_tasks_record():
+    # 0.63's timer in this process: a timeout past what setitimer takes (about 9.2e9 s; --task-timeout 1e300) raised
+    # OverflowError, a traceback from tghop batch --workers 1 (Dask's path takes it as no limit); one of a nanosecond
+    # fired before the task's try, TaskTimeout's traceback instead of the exemplar's record.
+    from tghop.batch_task import within
+
+    job = {"name": "a", "seed": 1}
+    assert within(lambda job: {"status": "ok"}, job, 1e300) == {"status": "ok"}
+    for _ in range(20):
+        record = within(lambda job: time.sleep(1) or {"status": "ok"}, job, 1e-9)
+        assert (record["status"], record["timed_out"]) == ("failed", True), record
+    assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
+
 def test_ctrl_c_while_the_cluster_starts_prints_no_traceback(tmp_path):
     # Ctrl-C to the whole process group, again and again from the start: ignored while the
     # workers start (they inherit that), then a clean stop; never a worker's traceback.

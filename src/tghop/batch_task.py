@@ -42,6 +42,9 @@ _HOLD = {"lock": threading.Lock(), "count": 0, "limit": None, "stack": None}
 #: Whether :func:`within`'s alarm may stop the task now: :func:`process_exemplar` clears it before it moves its
 #: files into place, so that they are all moved or none (0.63).
 _ALARM = {"armed": False}
+#: :func:`within`'s longest timer, seconds (31 years): a longer ``task_timeout`` is this one in this process
+#: (setitimer refuses more than about 9.2e9 s; 0.63 raised OverflowError at --task-timeout 1e300, 0.64).
+LONGEST_TIMER = 1e9
 
 
 class TaskTimeout(BaseException):
@@ -82,8 +85,8 @@ def within(task, job: dict, seconds):
 
     previous = signal.signal(signal.SIGALRM, expired)
     _ALARM["armed"] = True
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
+    try:  # the timer set inside: a short one fires as setitimer returns (0.63's traceback at 1e-9 s, 0.64)
+        signal.setitimer(signal.ITIMER_REAL, min(seconds, LONGEST_TIMER))
         return task(job)
     except TaskTimeout:
         return timed_out_record(job, seconds, started)
