@@ -55,3 +55,29 @@ def test_peaks_of_negative_correlation_are_no_repeat():
     strength, lag = repeat(picture, hole, 32)
     assert (strength, lag) == (0.0, 0)
     assert match_band(picture, hole, 5, 32) == 5
+
+
+def test_bad_arguments_are_told_in_one_line_not_numpys_errors():
+    # 0.63: a 2-D picture raised NumPy's AxisError, a hole of another shape was read as one of too few pixels ((0.0, 0),
+    # or NumPy's IndexError at a smaller patch), a negative patch NumPy's "negative dimensions", a float one
+    # "'float' object cannot be interpreted as an integer", and match_band's hole as a list "no attribute 'any'".
+    import pytest
+
+    from tghop._errors import TGHopError
+
+    image, hole = data.bricks(96), np.zeros((96, 96), bool)
+    hole[40:50, 40:50] = True
+    cases = [(repeat, image[..., 0], hole, 32, r"image must be an \(H, W, C\) array, got shape \(96, 96\); give "
+                                              r"a grey picture as image\[\.\.\., None\]"),
+             (repeat, image, np.zeros((50, 50), bool), 32,
+              r"hole must be an \(H, W\) mask of the image's 96x96 pixels"),
+             (repeat, image, np.zeros((50, 50), bool), 8, r"hole must be an \(H, W\) mask"),
+             (repeat, image, None, 32, r"hole must be an \(H, W\) mask"),
+             (repeat, image, hole, -3, r"patch_size must be an integer >= 1, got -3"),
+             (repeat, image, hole, 2.5, r"patch_size must be an integer >= 1, got 2.5"),
+             (match_band, image, np.ones((10, 10), bool), 32, r"hole must be an \(H, W\) mask")]
+    for f, *args, message in cases:
+        with pytest.raises(TGHopError, match=rf"^{f.__name__}: {message}"):
+            f(*args) if f is repeat else f(args[0], args[1], 5, args[2])
+    assert match_band(image, hole.tolist(), 5, 32) == match_band(image, hole, 5, 32)
+    assert repeat(image, hole.astype(np.uint8) * 255, 32) == repeat(image, hole, 32)

@@ -26,6 +26,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._arrays import check_int, check_mask
+from ._errors import TGHopError
+
 __all__ = ["repeat", "match_band", "REGULAR", "PROMINENCE", "FUNDAMENTAL", "MAX_LAG", "MARGIN"]
 
 #: A picture is regular when its strongest repeat correlates at least this much (brick courses 0.39-0.53, tiles
@@ -44,6 +47,18 @@ MAX_LAG = 2
 
 #: The pixels around the hole's bounding box that are read (patch sides).
 MARGIN = 4
+
+
+def _checked(image, hole, patch_size, where):
+    """``image`` as an (H, W, C) array (not copied), ``hole`` as bool (H, W) and ``patch_size``, or a one-line
+    :class:`TGHopError` naming ``where`` (0.63 raised NumPy's errors, or read a hole of another shape as too few
+    pixels; 0.64)."""
+    image = np.asarray(image)
+    if image.ndim != 3:
+        raise TGHopError(f"{where}: image must be an (H, W, C) array, got shape {image.shape}; give a grey picture as "
+                         "image[..., None]")
+    hole = check_mask(False if hole is None else hole, image.shape, where, "hole")
+    return image, hole, check_int(patch_size, "patch_size", where=where)
 
 
 def _autocorrelation(grey, known, reach):
@@ -86,7 +101,8 @@ def repeat(image, hole, patch_size):
     """
     from scipy.ndimage import maximum_filter
 
-    known = ~np.asarray(hole, bool)
+    image, hole, patch_size = _checked(image, hole, patch_size, "repeat")
+    known = ~hole
     grey = np.asarray(image, np.float64).mean(axis=2)
     if known.sum() < 4 * patch_size * patch_size or grey[known].std() == 0:
         return 0.0, 0
@@ -129,6 +145,7 @@ def match_band(image, hole, overlap, patch_size):
         (:func:`repeat`) is weaker than :data:`REGULAR` or the hole is empty, else its period, at least
         ``overlap`` and at most ``patch_size`` (every known pixel of a block).
     """
+    image, hole, patch_size = _checked(image, hole, patch_size, "match_band")
     rows, cols = np.flatnonzero(hole.any(axis=1)), np.flatnonzero(hole.any(axis=0))
     if not rows.size:
         return int(overlap)
