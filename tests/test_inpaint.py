@@ -384,6 +384,17 @@ def test_return_stages_gives_each_steps_picture_and_the_last_is_the_result(model
     assert np.array_equal(steps["patch refine"], grown / np.float32(255)) and steps["quilt"].shape == (96, 128, 3)
 
 
+def test_a_deferred_pool_decoded_twice_says_so(small_model):
+    # 0.63's second decode() raised "IndexError: pop from empty list" (its vectors are let go after the first).
+    from tghop._errors import TGHopError
+    from tghop.pool import deferred_pool
+
+    decode = deferred_pool(small_model, 20, np.random.default_rng(4), np.float32)
+    assert decode().shape[0] == 20
+    with pytest.raises(TGHopError, match=r"^deferred_pool: this pool was decoded already \(its vectors are let go "
+                                         r"after the first decode\(\)\); draw another with deferred_pool$"):
+        decode()
+
 def test_the_pool_is_drawn_before_the_coarse_fill_decoded_after_it_and_let_go_before_the_refinements(
         small_model, bricks96, square, monkeypatch):
     # 0.62 decoded the fill's pool before its coarse fill, which holds a pool of its own, and kept it through the

@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from ._errors import TGHopError
 from ._resources import one_blas_thread
 from .patches import depth_to_space
 from .quilting import POOL_CHUNK, block_count, prepare_pool
@@ -290,7 +291,8 @@ def deferred_pool(model, n, rng, dtype):
     Returns
     -------
     callable
-        ``decode()`` -> ndarray (n, P, P, C) in [0, 1], of ``dtype``; the vectors are let go after it.
+        ``decode()`` -> ndarray (n, P, P, C) in [0, 1], of ``dtype``; the vectors are let go after it (a second call
+        raises :class:`~tghop.TGHopError`).
     """
     if not hasattr(model, "sample_vectors"):
         patches = model.sample_patches(n, rng=rng, dtype=dtype)
@@ -299,6 +301,9 @@ def deferred_pool(model, n, rng, dtype):
         vectors = [model.sample_vectors(n, rng, np.dtype(dtype))]
 
     def decode():
+        if not vectors:  # 0.63: "IndexError: pop from empty list" (0.64)
+            raise TGHopError("deferred_pool: this pool was decoded already (its vectors are let go after the first "
+                             "decode()); draw another with deferred_pool")
         with one_blas_thread():
             pool = GeneratedPool(model, *vectors.pop())
             return pool.all()
