@@ -2108,6 +2108,18 @@ def test_a_ledger_line_not_in_utf8_is_skipped_as_a_torn_one(tmp_path):
     assert [r["skipped"] for r in run(src, out, workers=1)] == [True, True]
 
 
+def test_a_hand_edited_ledger_lines_outputs_not_a_list_of_names_is_no_finished_exemplar(tmp_path):
+    # 0.63: a line's outputs of 7 ("Value after * must be an iterable") or of [1, 2] ("unsupported operand type(s) for
+    # /") stopped the rerun with a traceback; such a line lists no files of its exemplar, which is made again.
+    src, out = make_folder(tmp_path / "src", bad=False), tmp_path / "out"
+    assert [r["status"] for r in run(src, out, workers=1)] == ["ok", "ok"]
+    edited = [json.loads(line) for line in (out / "batch.jsonl").read_text().splitlines()]
+    for rec, outputs in zip(edited, (7, [1, 2])):
+        rec["outputs"] = outputs
+    with open(out / "batch.jsonl", "a") as fh:
+        fh.writelines(json.dumps(rec) + "\n" for rec in edited)
+    assert [(r["skipped"], r["status"]) for r in run(src, out, workers=1)] == [(False, "ok"), (False, "ok")]
+
 def test_a_folder_named_as_a_claim_is_no_claim(tmp_path):
     # 0.62 took a folder .batch-running in an exemplar's folder (made by hand) for a killed run's claim: the exemplar
     # was made again, the folder could not be removed as the claim's file is, and so in every rerun, without a word.

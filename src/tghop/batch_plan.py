@@ -619,10 +619,10 @@ def is_done(prev: dict | None, job: dict, outdir: Path) -> bool:
         return False
     if prev.get("settings") != job["settings"]:
         return False
-    # A model and no empty output name, and every file the line lists (the thumbnail too: the
-    # contact sheet shows it).
-    return all([*(prev.get("outputs") or []), prev.get("model")]) and all(
-        (outdir / f).is_file() for f in _listed_files(prev))
+    # A model and no empty output name, and every file the line lists (the thumbnail too: the contact sheet shows it),
+    outputs = prev.get("outputs") or []  # all names (0.64; 0.63: a hand-edited 7 or [1, 2] raised a traceback)
+    return isinstance(outputs, list) and all([*outputs, prev.get("model")]) and all(
+        isinstance(f, str) and (outdir / f).is_file() for f in _listed_files(prev))
 
 
 def is_known_failure(prev: dict | None, job: dict, version: str) -> bool:
