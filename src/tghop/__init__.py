@@ -14,7 +14,7 @@ Where to start (each has its ``help``; the README's "Python" section shows them 
   (:data:`tghop.synthesis.PAPER_TABLE4`: the paper's).
 """
 
-__version__ = "0.63.0"
+__version__ = "0.64.0"
 
 from ._errors import (ImageTooLargeError, InvalidImageError, MissingExtraError, ModelFileError, NotFittedError,
                       OpaqueAlphaWarning, TGHopError, TransparencyWarning)
