@@ -217,6 +217,17 @@ function intoView(box, from = $("modes-row")) {
   if (rect.top < 0 || rect.bottom > window.innerHeight) from.scrollIntoView({ block: "start" });
 }
 
+// A job's bar just shown, and the status line under it, brought into sight where they are below the fold (0.64: at
+// 1024x700 after "model ready", and at 400x800 for Morph and Fill, the button read Stop and its bar and "generating"
+// came out of sight under it, the page looking stuck for the seconds the image took). Never scrolled up: a bar above
+// the window (Co-occurrence's, over its section) stays where it is, the artist at the canvas they work on.
+function barInSight(box) {
+  const status = box.nextElementSibling && box.nextElementSibling.getAttribute("role") === "status"
+    ? box.nextElementSibling : box;
+  const below = status.getBoundingClientRect().bottom + 8 - window.innerHeight;
+  if (below > 0 && box.getBoundingClientRect().top >= 0) window.scrollBy(0, below);
+}
+
 // A new job id for a generation: 32 hex digits (the request's X-Tghop-Job header; docs/serve.md, "Jobs").
 function newJobId() {
   return [...crypto.getRandomValues(new Uint8Array(16))].map((b) => b.toString(16).padStart(2, "0")).join("");
@@ -235,7 +246,9 @@ async function withProgress(boxId, request, { from = 0, to = 1, label = "" } = {
   box.dataset.job = job;  // for scripts and tests
   if (from === 0 || box.hidden) bar.value = from;
   showStage(bar, text, `${label}waiting`);
+  const shown = !box.hidden;
   box.hidden = false;
+  if (!shown) barInSight(box);
   const poll = async () => {
     try {
       // "unknown" (not 404, a console error) until the server has read the request as far as its job header

@@ -135,7 +135,11 @@ function renderCoocCrops() {
     radio.id = `cooc-crop-${i}`;
     radio.checked = i === cooc.active;
     radio.addEventListener("change", () => { if (radio.checked) cooc.active = i; });
-    label.append(radio, swatch(i), `crop ${i + 1}` + (crop ? ` (${crop[0]}, ${crop[1]})` : ""));
+    // where it is in a span of its own, which a narrow window hides from sight (style.css): the crops on one line
+    const at = document.createElement("span");
+    at.className = "crop-at";
+    at.textContent = crop ? ` (${crop[0]}, ${crop[1]})` : "";
+    label.append(radio, swatch(i), `crop ${i + 1}`, at);
     group.append(label);
   });
   updateCoocButtons();

@@ -338,5 +338,6 @@ async function restoreWorking() {
     maps: kept.maps || [] });
   setModel(kept.modelId, kept.material);
   say(`the model of ${kept.name} is back (kept across the reload): generate below`);
-  showSummary(kept.modelId);
+  // Generate brought into sight as after a fit (0.64: 0.63 left it below the fold at 1024x700, under the summary)
+  showSummary(kept.modelId).then(() => generateInSight(kept.modelId));
 }
