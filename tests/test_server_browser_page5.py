@@ -1,12 +1,13 @@
 """An artist's third walk through ``tghop serve``'s page, in a real browser (Chromium through Playwright) against a
 real uvicorn server (0.64): Generate brought into sight by a model restored at a reload, as by a fresh fit; a job's bar
 and status line brought into sight when the job starts (they came below the fold, under the button that read Stop);
-Co-occurrence's crop buttons each on one line, the four of them in one row at 400 px."""
+Co-occurrence's crop buttons each on one line, the four of them in one row at 400 px; a model's long file name breaking
+inside the page at 400 px, not widening it."""
 
 import re
 
 import chromium
-from conftest import FAST_FIT
+from conftest import FAST_FIT, save_texture
 
 chromium.require()
 
@@ -70,4 +71,26 @@ def test_coocs_crop_buttons_stay_on_one_line_in_a_narrow_window(page, tiny_cooc_
     # where each is: read by a screen reader there, shown in a wider window
     assert all(c["at"] <= 1 for c in narrow) and all(c["at"] > 20 for c in wide), (narrow, wide)
     chromium.choose_mode(page, "view")
+    assert not page.errors, page.errors
+
+
+def test_a_long_model_name_never_widens_a_narrow_page(page, tmp_path):
+    # A model file named without a space ran out of the message, Paint's list and colours and Morph's menus at 400 px:
+    # the page scrolled sideways, 601 px wide in a 400 px window (0.63).
+    name = "Rock023_2K_Color_from_the_library_of_textures.npz"
+    save_texture(tmp_path / name)
+    chromium.upload_model(page, tmp_path / name)
+    wide = "[document.documentElement.scrollWidth, window.innerWidth]"
+    with chromium.window(page, 400, 800):
+        assert page.text_content("#message").startswith(f"model {name} loaded")
+        widths = {"loaded": page.evaluate(wide)}
+        for mode in ("paint", "morph"):
+            chromium.choose_mode(page, mode)
+            if mode == "paint":
+                for box in page.query_selector_all("#paint-models input[type=checkbox]")[:2]:
+                    box.check()
+                assert page.locator("#paint-colours label").count() >= 1
+            widths[mode] = page.evaluate(wide)
+        chromium.choose_mode(page, "view")
+    assert all(w <= inner for w, inner in widths.values()), widths
     assert not page.errors, page.errors
