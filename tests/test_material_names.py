@@ -12,7 +12,8 @@ from tghop.map_names import name_kind
 from tghop.material import Material, example_maps, is_normal_name, map_kind, normal_convention
 
 #: A small, fast joint model (as tests/test_material.py's).
-FAST = dict(max_patches=1500, n_clusters=10, layout_factor=None)
+#: A fast fit (conftest's small models' settings): these tests check names, warnings and channels, not the model.
+FAST = dict(max_patches=1500, n_clusters=6, n_codewords=30, stride=4, layout_factor=None)
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +99,7 @@ def _cli(args, folder):
     return CliRunner().invoke(main, [str(folder / a) if a.endswith((".png", ".jpg", ".npz")) else a for a in args])
 
 
-FAST_CLI = ["--max-patches", "1500", "--clusters", "10", "--layout", "none", "-q"]
+FAST_CLI = ["--max-patches", "1500", "--clusters", "6", "--codewords", "30", "--stride", "4", "--layout", "none", "-q"]
 
 
 def test_a_colour_map_given_after_maps_or_left_out_is_refused_in_one_line(exemplar, maps, tmp_path):
@@ -335,7 +336,7 @@ def test_a_packing_with_a_map_in_its_alpha_keeps_it_as_its_fourth_channel(name, 
     assert res.exit_code == 0 and "Warning" not in res.output, res.output
     channels = 2 if unused == "grey" else 4
     assert f"{name} ({channels} channels, 8-bit)" in _cli(["info", "m.npz"], tmp_path).output
-    res = _cli(["synth", "m.npz", "-o", "out.png", "--size", "64x64", "--seed", "1", "-q"], tmp_path)
+    res = _cli(["synth", "m.npz", "-o", "out.png", "--size", "64x64", "--seed", "1", "-q", "--pool", "800"], tmp_path)
     assert res.exit_code == 0, res.output
     (written,) = [p for p in tmp_path.glob("out_*.png")]
     made = load_image(written, keep_alpha=True)
