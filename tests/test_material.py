@@ -22,6 +22,9 @@ FAST = dict(max_patches=1500, n_clusters=10, layout_factor=None)
 FAST_CLI = ["--max-patches", "1500", "--clusters", "10", "--layout", "none"]
 #: A small pool: quick syntheses.
 POOL = dict(n_patches=1000)
+#: A faster fit (conftest's small models' settings), for the tests of how maps are named and matched, which never
+#: judge the model.
+NAMES = dict(max_patches=1500, n_clusters=6, n_codewords=30, stride=4, layout_factor=None)
 
 
 @pytest.fixture(scope="module")
@@ -712,9 +715,9 @@ def test_materials_of_one_library_naming_paint_together(exemplar, maps, tmp_path
 
     cells = data.cells(64, rng=3)
     cell_maps = example_maps(cells)
-    stone = Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"Stone_Normal": maps["normal"],
+    stone = Material(model=TGHop(**NAMES), rng=0).fit(exemplar, {"Stone_Normal": maps["normal"],
                                                                 "Stone_Height": maps["height"]})
-    gravel = Material(model=TGHop(**FAST), rng=0).fit(cells, {"Gravel_normal": cell_maps["normal"],
+    gravel = Material(model=TGHop(**NAMES), rng=0).fit(cells, {"Gravel_normal": cell_maps["normal"],
                                                               "Gravel_Height": cell_maps["height"]})
     guide = np.repeat([[0.0, 1.0]], 48, axis=0).repeat(32, axis=1)
     out = synthesize_guided([stone, gravel], guide, rng=1, **POOL)
@@ -729,7 +732,7 @@ def test_materials_of_one_library_naming_paint_together(exemplar, maps, tmp_path
     assert res.exit_code == 0, res.output
     assert sorted(p.name for p in tmp_path.glob("wall*.png")) == ["wall.png", "wall_Height.png", "wall_Normal.png"]
     # Other maps are still refused, saying how maps are matched
-    rough = Material(model=TGHop(**FAST), rng=0).fit(cells, {"Gravel_Normal": cell_maps["normal"],
+    rough = Material(model=TGHop(**NAMES), rng=0).fit(cells, {"Gravel_Normal": cell_maps["normal"],
                                                              "Gravel_Roughness": cell_maps["roughness"]})
     save_model(rough, tmp_path / "rough.npz")
     res = CliRunner().invoke(main, ["synth", "stone.npz", "rough.npz", "-o", "o.png", "--size", "48x64", "-q"])
@@ -748,9 +751,9 @@ def test_materials_of_two_libraries_namings_paint_together_by_kind(exemplar, map
     cells = data.cells(64, rng=3)
     cell_maps = example_maps(cells, convention="OpenGL")
     gl = example_maps(exemplar, convention="OpenGL")
-    stone = Material(model=TGHop(**FAST), rng=0).fit(exemplar, {"Stone_NormalGL": gl["normal"],
+    stone = Material(model=TGHop(**NAMES), rng=0).fit(exemplar, {"Stone_NormalGL": gl["normal"],
                                                                 "Stone_Roughness": gl["roughness"]})
-    gravel = Material(model=TGHop(**FAST), rng=0).fit(cells, {"gravel_nor_gl_2k": cell_maps["normal"],
+    gravel = Material(model=TGHop(**NAMES), rng=0).fit(cells, {"gravel_nor_gl_2k": cell_maps["normal"],
                                                               "gravel_rough_2k": cell_maps["roughness"]})
     guide = np.repeat([[0.0, 1.0]], 48, axis=0).repeat(32, axis=1)
     assert list(synthesize_guided([stone, gravel], guide, rng=1, **POOL)) == stone.names_
