@@ -437,16 +437,20 @@ def test_checker_of_the_strided_grid_is_taken_off_the_change():
 def test_stride_two_leaves_no_checker(patch_model, monkeypatch):
     """Refining at stride 2 leaves a 2-pixel pattern in the change; the default takes it off.
     Stride 1 leaves none, and its result is not touched."""
-    # The input is fixed (quilting's detail of 0.38): the test is about the refinement's
-    # checker, whose size differs from image to image (1.19 times on an image of 0.39's
-    # quilting with the guide's detail at 0.8 too).
-    img = patch_model.synthesize((96, 96), rng=2, patch_refine=0, detail=0.5).astype(np.float32)
+    # The checker's size differs from image to image (1.11-1.75 times over seeds 2-6 of this quilt on an AMD EPYC's
+    # OpenBLAS, 1.19 on an image of 0.39's quilting with the guide's detail at 0.8): three images, their geometric mean.
     st = patch_model.patches_
-    kept = pr.patch_refine(img, st, n_steps=12, stride=2)
+    ratios = []
+    for seed in (2, 3, 4):
+        img = patch_model.synthesize((96, 96), rng=seed, patch_refine=0, detail=0.5).astype(np.float32)
+        kept = pr.patch_refine(img, st, n_steps=12, stride=2)
+        with monkeypatch.context() as m:
+            m.setattr(pr, "_without_checker", lambda image, start, tile: image)
+            left = pr.patch_refine(img, st, n_steps=12, stride=2)
+        ratios.append(_nyquist_excess(left - img) / _nyquist_excess(kept - img))
+    assert np.exp(np.log(ratios).mean()) > 1.2, ratios
     every_patch = pr.patch_refine(img, st, n_steps=12, stride=1)
     monkeypatch.setattr(pr, "_without_checker", lambda image, start, tile: image)
-    left = pr.patch_refine(img, st, n_steps=12, stride=2)
-    assert _nyquist_excess(left - img) > 1.3 * _nyquist_excess(kept - img)
     assert np.array_equal(pr.patch_refine(img, st, n_steps=12, stride=1), every_patch)
 
 
