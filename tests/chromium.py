@@ -1,5 +1,5 @@
-"""Headless Chromium (Debian's ``chromium`` package, never a downloaded browser) driven by
-Playwright: used by the ``test_server_browser*.py`` tests and by
+"""Headless Chromium (Debian's ``chromium-headless-shell``, else its ``chromium``; never a downloaded browser)
+driven by Playwright: used by the ``test_server_browser*.py`` tests and by
 ``scripts/make_gallery.py serve`` (the README's screenshot of ``tghop serve``'s page)."""
 
 import contextlib
@@ -7,8 +7,22 @@ import functools
 import os
 import time
 
-#: The browser: ``$TGHOP_CHROMIUM`` or Debian's.
-CHROMIUM = os.environ.get("TGHOP_CHROMIUM", "/usr/bin/chromium")
+#: Debian's ``chromium-headless-shell``: the same Chromium built for headless use alone (Playwright's choice for
+#: headless runs), lighter on the CPU than the whole browser (docs/choices.md, "The test suite on CI's two cores").
+HEADLESS_SHELL = "/usr/bin/chromium-headless-shell"
+#: Debian's whole browser, where the headless shell is not installed.
+FALLBACK = "/usr/bin/chromium"
+
+
+def _default_browser():
+    """:data:`HEADLESS_SHELL` where it is an executable, else :data:`FALLBACK`."""
+    if os.path.isfile(HEADLESS_SHELL) and os.access(HEADLESS_SHELL, os.X_OK):
+        return HEADLESS_SHELL
+    return FALLBACK
+
+
+#: The browser: ``$TGHOP_CHROMIUM``, else Debian's headless shell, else Debian's chromium.
+CHROMIUM = os.environ.get("TGHOP_CHROMIUM") or _default_browser()
 #: Headless, no GPU, nothing fetched in the background.
 ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
         "--disable-background-networking", "--disable-component-update", "--disable-sync"]
@@ -17,7 +31,7 @@ ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-f
 #: about five times the browser's CPU of a look every 20 ms (docs/choices.md, "The test suite on CI's two cores").
 POLL_MS = 20
 #: Why there is no browser to drive, when :func:`missing` says so.
-INSTALL = "install it: apt-get install chromium; or set TGHOP_CHROMIUM"
+INSTALL = "install it: apt-get install chromium-headless-shell (or chromium); or set TGHOP_CHROMIUM"
 
 
 @contextlib.contextmanager
