@@ -398,26 +398,6 @@ def test_drop_an_image_cancel_a_fit_and_upload_a_saved_model(page, live_server, 
     assert not page.errors, page.errors
 
 
-def test_a_refused_model_file_goes_back_to_the_working_model(page, live_server, tmp_path):
-    # It left no model (Generate off, no summary), though the model before it was working; before that,
-    # the summary of the model it replaced stayed under the error with no model loaded.
-    chromium.choose_mode(page, "view")
-    if not page.is_enabled("#go"):  # run alone: fit first
-        fit_bricks(page)
-    page.wait_for_selector("#summary:not([hidden])")
-    summary, working = page.text_content("#summary"), page.evaluate("() => state.working.name")
-    bad = tmp_path / "broken.npz"
-    bad.write_bytes(b"PK\x03\x04 not a model")
-    page.set_input_files("#model-file", str(bad))
-    page.wait_for_function("document.getElementById('message').classList.contains('error')")
-    said = page.text_content("#message")
-    assert "not a tghop model file" in said and f"(broken.npz was not used; the model of {working} stays)" in said
-    page.wait_for_selector("#summary:not([hidden])")
-    assert page.text_content("#summary") == summary  # the working model's: no other was loaded
-    assert page.is_enabled("#go") and page.is_visible("#download-model")
-    page.errors.clear()  # Chromium logs the 400
-
-
 def test_cooc_says_where_a_crop_is_and_how_to_paint_the_edit(page, live_server, tiny_cooc_checkpoint):
     # After a click the message still said "click on the exemplar to place crop 1", and nothing beside the
     # edit's board (a block of crop 1's red) said what it was or how to change it.

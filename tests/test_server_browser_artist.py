@@ -337,6 +337,7 @@ def test_a_strip_of_fills_still_coming_stops_when_the_mode_or_the_model_changes(
     chromium.fit_builtin(page, "cells")  # in the server's cache: picked again below, it is the working model at once
     chromium.fit_builtin(page, "bricks")
     bricks = page.evaluate("state.modelId")
+    page.fill("#n_patches", "400")  # a small pool: a quick picture to fill (bricks_result's)
     generate(page, 5, size=(64, 64))
     ask_fills(page, 4, 3)
     page.evaluate("""() => { window.stripImages = 0; new MutationObserver((changes) => {

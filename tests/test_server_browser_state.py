@@ -414,11 +414,11 @@ def test_a_reload_withdraws_the_running_fit(page):
     job = page.get_attribute("#fit-status", "data-job")
     page.reload()
     page.wait_for_selector("body[data-ready='1']")
-    for _ in range(120):  # the fit stops at its next progress report
+    for _ in range(600):  # the fit stops at its next progress report
         snap = page.evaluate("(job) => fetch(`/api/jobs/${job}`).then((r) => r.json())", job)
         if snap["state"] != "running":
             break
-        page.wait_for_timeout(500)
+        page.wait_for_timeout(100)
     assert snap["state"] == "cancelled" and snap["askers"] == 0, snap
     assert not page.errors, page.errors
 
