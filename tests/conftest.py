@@ -43,9 +43,8 @@ PARALLEL_WORKERS = 2
 
 _BROWSERS = ("test_server_browser.py", "test_server_browser_artist.py", "test_server_browser_compare.py",
              "test_server_browser_download.py", "test_server_browser_materials.py", "test_server_browser_page.py",
-             "test_server_browser_page3.py", "test_server_browser_page4.py", "test_server_browser_progress.py",
-             "test_server_browser_state.py",
-             "test_server_firefox.py")
+             "test_server_browser_page3.py", "test_server_browser_page4.py", "test_server_browser_page5.py",
+             "test_server_browser_progress.py", "test_server_browser_state.py", "test_server_firefox.py")
 _DASK = ("test_batch.py", "test_batch_cluster.py", "test_batch_materials.py", "test_batch_resume.py")
 
 #: Files that must not run at the same time as each other (file name -> group name): one browser at a time, as the

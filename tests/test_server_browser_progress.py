@@ -521,8 +521,8 @@ def test_cooc_says_where_its_strip_and_result_are(page, tiny_cooc_checkpoint):
                          ("cooc-edit-seed", "1")):
         page.fill(f"#{field}", value)
     try:
-        # At 400x800 the test's 48x32 canvas leaves room for the thumbnail beside it since 0.64 put the crop buttons on one
-        # line (0.63's three-line buttons pushed it under)
+        # At 400x800 the test's 48x32 canvas leaves room for the thumbnail beside it since 0.64 put the crop buttons
+        # on one line (0.63's three-line buttons pushed it under)
         for width, height, where in ((1024, 700, "beside"), (1600, 900, "beside"), (400, 800, "beside")):
             page.set_viewport_size({"width": width, "height": height})
             for button, what in (("#cooc-morph-go", "strip"), ("#cooc-edit-go", "result")):
